@@ -1,0 +1,45 @@
+"""Checkpoints: written atomically after every generation or iteration, loaded with ``weights_only=True``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+
+import torch
+
+from spn_torchrl.errors import CheckpointError
+from spn_torchrl.records import save_torch_atomic
+
+CHECKPOINT_NAME = "checkpoint.pt"
+
+
+def save(state: Mapping[str, Any], run_dir: Path) -> Path:
+    """Write ``run_dir/checkpoint.pt`` atomically."""
+    path = Path(run_dir) / CHECKPOINT_NAME
+    save_torch_atomic(dict(state), path)
+    return path
+
+
+def load(path: Path, expected: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Read a checkpoint (a file or a run directory) and check that its ``meta`` matches ``expected``."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / CHECKPOINT_NAME
+    if not path.exists():
+        raise CheckpointError(f"no checkpoint at {path}")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as err:  # torch raises many types for a truncated or foreign file
+        raise CheckpointError(
+            f"{path} is not a readable spn_torchrl checkpoint (corrupt or foreign file: {type(err).__name__})"
+        ) from None
+    if not isinstance(state, dict) or "meta" not in state:
+        raise CheckpointError(f"{path} is not a spn_torchrl checkpoint (no 'meta' entry)")
+    for key, want in (expected or {}).items():
+        have = state["meta"].get(key)
+        if have != want:
+            raise CheckpointError(
+                f"{path} was written for {key}={have!r}, but this run has {key}={want!r}: "
+                "use a new run directory or the matching config"
+            )
+    return state

@@ -1,0 +1,139 @@
+"""Typed configs (Hydra structured configs) and the validation every run does before building an env.
+
+Defaults are the paper's (SPEC.md); options that change the algorithm are off by default.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig
+
+from spn_torchrl.errors import ConfigError
+
+
+@dataclass
+class GAConfig:
+    """Connections-GA / Weights-GA (SPEC.md: G=100, N=200, sigma=0.01, eta=0.25, s_th=0.5)."""
+
+    name: str = "conn_ga"
+    kind: str = "ga"
+    genome: str = "connections"  # "connections" (scores, masked fixed weights) or "weights"
+    generations: int = 100
+    population: int = 200
+    sigma: float = 0.01
+    truncation: float = 0.25
+    score_threshold: float = 0.5
+    elite_candidates: int = 10
+    elite_episodes: int = 10
+    hidden: int = 64
+    time_steps: int = 4
+    decay: float = 0.75
+    v_threshold: float = 0.5
+    elitism: int = 0  # option: keep the k best unchanged (the paper keeps none)
+    init_from_fixed_weights: bool = False  # option (Weights-GA): start around the Kaiming weights, not 0
+
+
+@dataclass
+class EnvConfig:
+    name: str = MISSING
+    id: str = MISSING
+    backend: str = "gymnasium"
+    num_workers: int = 1  # worker processes stepping the population (1 suits a 2-core machine)
+
+
+@dataclass
+class LoggerConfig:
+    backend: str = "csv"  # "csv", "wandb" or "none"
+    project: str = "spn_torchrl"
+    entity: Optional[str] = None
+    group: Optional[str] = None
+    mode: str = "auto"  # wandb: "auto" (offline when there is no network), "online", "offline", "disabled"
+    progress_bar: bool = False
+
+
+@dataclass
+class RunConfig:
+    algo: Any = MISSING
+    env: EnvConfig = MISSING
+    logger: LoggerConfig = MISSING
+    seed: int = 0
+    resume: bool = False
+    torch_threads: int = 1
+    run_name: Optional[str] = None
+
+
+def register_configs() -> None:
+    """Register the schemas that the YAML files in conf/ extend."""
+    cs = ConfigStore.instance()
+    cs.store(name="run_schema", node=RunConfig)
+    cs.store(group="algo", name="ga_schema", node=GAConfig)
+    cs.store(group="env", name="env_schema", node=EnvConfig)
+    cs.store(group="logger", name="logger_schema", node=LoggerConfig)
+
+
+def _require(ok: bool, message: str) -> None:
+    if not ok:
+        raise ConfigError(message)
+
+
+def validate_ga(algo: DictConfig) -> None:
+    """One clear sentence per bad GA value, naming the field and the allowed range."""
+    _require(algo.genome in ("connections", "weights"), f"algo.genome must be 'connections' or 'weights', got {algo.genome!r}")
+    _require(algo.generations >= 1, f"algo.generations must be >= 1, got {algo.generations}")
+    _require(
+        algo.population >= 2 and algo.population % 2 == 0,
+        f"algo.population must be even and >= 2 (mirrored pairs), got {algo.population}",
+    )
+    _require(algo.sigma > 0, f"algo.sigma must be > 0, got {algo.sigma}")
+    _require(0 < algo.truncation <= 1, f"algo.truncation must be in (0, 1], got {algo.truncation}")
+    _require(0 < algo.score_threshold < 1, f"algo.score_threshold must be in (0, 1), got {algo.score_threshold}")
+    _require(
+        1 <= algo.elite_candidates <= algo.population,
+        f"algo.elite_candidates must be in [1, algo.population={algo.population}], got {algo.elite_candidates}",
+    )
+    _require(algo.elite_episodes >= 1, f"algo.elite_episodes must be >= 1, got {algo.elite_episodes}")
+    _require(
+        algo.elite_candidates * algo.elite_episodes <= algo.population,
+        "algo.elite_candidates * algo.elite_episodes must be <= algo.population (the re-evaluation runs on "
+        f"the population's env), got {algo.elite_candidates} * {algo.elite_episodes} > {algo.population}",
+    )
+    _require(algo.hidden >= 1, f"algo.hidden must be >= 1, got {algo.hidden}")
+    _require(algo.time_steps >= 1, f"algo.time_steps must be >= 1, got {algo.time_steps}")
+    _require(0 <= algo.decay <= 1, f"algo.decay must be in [0, 1], got {algo.decay}")
+    _require(
+        0 <= algo.elitism < algo.population,
+        f"algo.elitism must be in [0, algo.population), got {algo.elitism}",
+    )
+    _require(
+        not algo.init_from_fixed_weights or algo.genome == "weights",
+        "algo.init_from_fixed_weights applies only to algo.genome=weights",
+    )
+
+
+def validate(cfg: DictConfig) -> None:
+    """Check a whole run config before anything is built."""
+    kind = cfg.algo.get("kind")
+    _require(kind in ALGO_VALIDATORS, f"algo.kind must be one of {sorted(ALGO_VALIDATORS)}, got {kind!r}")
+    ALGO_VALIDATORS[kind](cfg.algo)
+    from spn_torchrl.envs import BACKENDS
+
+    _require(
+        cfg.env.backend in BACKENDS,
+        f"env.backend must be one of {sorted(BACKENDS)}, got {cfg.env.backend!r}",
+    )
+    _require(cfg.env.num_workers >= 1, f"env.num_workers must be >= 1, got {cfg.env.num_workers}")
+    _require(cfg.torch_threads >= 1, f"torch_threads must be >= 1, got {cfg.torch_threads}")
+    _require(
+        cfg.logger.backend in ("csv", "wandb", "none"),
+        f"logger.backend must be 'csv', 'wandb' or 'none', got {cfg.logger.backend!r}",
+    )
+    _require(
+        cfg.logger.mode in ("auto", "online", "offline", "disabled"),
+        f"logger.mode must be 'auto', 'online', 'offline' or 'disabled', got {cfg.logger.mode!r}",
+    )
+
+
+ALGO_VALIDATORS: dict[str, Any] = {"ga": validate_ga}

@@ -1,0 +1,13 @@
+"""The project's user-facing errors: each carries one sentence naming what is wrong."""
+
+
+class SpnError(Exception):
+    """Base of the errors a user can fix (bad config, unknown env, unusable checkpoint)."""
+
+
+class ConfigError(SpnError, ValueError):
+    """A config value is out of range or inconsistent; the message names the field."""
+
+
+class CheckpointError(SpnError):
+    """A checkpoint is corrupt or belongs to another task or architecture."""

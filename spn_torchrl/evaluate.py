@@ -1,0 +1,82 @@
+"""Population rollouts: genomes -> episode return, env steps and hidden spike counts per individual."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torchrl.envs import EnvBase
+
+from spn_torchrl.policies import PopulationSPN, spn_module
+
+
+@dataclass
+class Episodes:
+    """One episode per individual: undiscounted return, env steps and total hidden spikes."""
+
+    returns: torch.Tensor
+    steps: torch.Tensor
+    spikes: torch.Tensor
+
+    @property
+    def total_steps(self) -> int:
+        return int(self.steps.sum())
+
+
+def episode_seed(run_seed: int, generation: int, phase: int) -> int:
+    """Env seed of one rollout, derived from the run seed so that a resumed run replays it exactly."""
+    return int(np.random.SeedSequence([run_seed, generation, phase]).generate_state(1)[0] >> 1)
+
+
+class PopulationEvaluator:
+    """Runs a genome set on one batched env: every member to its own episode end, then frozen.
+
+    The env (batch [P]) is built once and reused; a call with fewer than P genomes leaves the
+    remaining slots out of every result.
+    """
+
+    def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
+        if len(env.batch_size) != 1:
+            raise ValueError(f"expected an env with batch size [P], got {tuple(env.batch_size)}")
+        self.env = env
+        self.spn = spn
+        self.policy = spn_module(spn)
+        self.size = env.batch_size[0]
+        self.max_episode_steps = max_episode_steps
+
+    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
+        count = genomes.shape[0]
+        if not 0 < count <= self.size:
+            raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
+        if count < self.size:
+            genomes = torch.cat([genomes, genomes[:1].expand(self.size - count, -1)])
+        self.spn.set_genomes(genomes)
+        active = torch.arange(self.size) < count
+        returns = torch.zeros(self.size)
+        steps = torch.zeros(self.size, dtype=torch.long)
+        spikes = torch.zeros(self.size)
+
+        self.env.set_seed(seed)
+        td = self.env.reset()
+        for _ in range(self.max_episode_steps):
+            td = self.policy(td)
+            spikes += td.get("hidden_spikes") * active
+            td, td_next = self.env.step_and_maybe_reset(td)
+            nxt = td.get("next")
+            finished = nxt.get("done").reshape(self.size) & active
+            if finished.any():
+                returns[finished] = nxt.get("episode_reward").reshape(self.size)[finished]
+                steps[finished] = nxt.get("step_count").reshape(self.size)[finished]
+                active &= ~finished
+                if not active.any():
+                    break
+            td = td_next
+        if active.any():  # an env without its own time limit: cut at max_episode_steps
+            returns[active] = nxt.get("episode_reward").reshape(self.size)[active]
+            steps[active] = nxt.get("step_count").reshape(self.size)[active]
+        return Episodes(returns[:count], steps[:count], spikes[:count])
+
+    def close(self) -> None:
+        if not self.env.is_closed:
+            self.env.close()

@@ -1,0 +1,155 @@
+"""A GA run: build the env and SPN once, then evaluate, re-evaluate the elite, select, log, checkpoint."""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+from spn_torchrl import checkpoint, ga
+from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.errors import ConfigError
+from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
+from spn_torchrl.policies import PopulationSPN, init_fixed_weights
+from spn_torchrl.records import Progress, make_logger
+
+log = logging.getLogger("spn_torchrl")
+
+FORMAT = "spn_torchrl.ga/1"
+
+
+def spn_from_config(cfg: DictConfig, spec, w1: torch.Tensor, w2: torch.Tensor) -> PopulationSPN:
+    """The run's SPN from its config, task spec and fixed weights."""
+    algo = cfg.algo
+    return PopulationSPN(
+        w1,
+        w2,
+        genome_kind=algo.genome,
+        score_threshold=algo.score_threshold,
+        discrete=spec.discrete,
+        action_low=spec.action_low,
+        action_high=spec.action_high,
+        time_steps=algo.time_steps,
+        decay=algo.decay,
+        v_th=algo.v_threshold,
+    )
+
+
+def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
+    """What a checkpoint must match to be resumed by this config."""
+    return {
+        "format": FORMAT,
+        "env_id": spec.env_id,
+        "genome": cfg.algo.genome,
+        "n_obs": spec.n_obs,
+        "n_act": spec.n_act,
+        "hidden": cfg.algo.hidden,
+        "population": cfg.algo.population,
+    }
+
+
+def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
+    """Run (or resume) the GA of SPEC.md; returns the last generation's metrics."""
+    algo = cfg.algo
+    spec = task_spec(cfg.env.id)
+    meta = run_meta(cfg, spec)
+    ckpt_path = run_dir / checkpoint.CHECKPOINT_NAME
+    generator = torch.Generator()
+
+    if ckpt_path.exists() and not cfg.resume:
+        raise ConfigError(f"{run_dir} already holds a run: pass resume=true to continue it, or use a new run directory")
+    if cfg.resume and ckpt_path.exists():
+        state = checkpoint.load(ckpt_path, expected=meta)
+        w1, w2 = state["w1"], state["w2"]
+        generator.set_state(state["rng"])
+        population, start = state["population"], state["generation"]
+        elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
+        run_name, wandb_id = state["run_name"], state["wandb_id"]
+        log.info("resuming %s after generation %d", run_dir, start)
+    else:
+        if cfg.resume:
+            log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
+        generator.manual_seed(cfg.seed)
+        w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
+        dim = w1.numel() + w2.numel()
+        center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
+        population = ga.initial_population(algo.population, dim, algo.sigma, generator, center)
+        start, elites, total_steps, wall, wandb_id = 0, [], 0, 0.0, None
+
+    spn = spn_from_config(cfg, spec, w1, w2)
+    progress = Progress(run_dir / "progress.csv", keep_rows=start)
+    logger = make_logger(cfg, run_dir, run_name, wandb_id)
+    wandb_id = getattr(getattr(logger, "experiment", None), "id", wandb_id) if cfg.logger.backend == "wandb" else None
+    env = make_population_env(spec.env_id, algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
+    evaluator = PopulationEvaluator(env, spn, spec.max_episode_steps)
+    k, episodes = algo.elite_candidates, algo.elite_episodes
+    row: dict[str, Any] = {}
+    try:
+        for generation in range(start + 1, algo.generations + 1):
+            t0 = time.perf_counter()
+            fitness_eps = evaluator(population, episode_seed(cfg.seed, generation, 0))
+            fitness = fitness_eps.returns
+            candidates = ga.elite_candidates(fitness, k)
+            reeval = evaluator(population[candidates].repeat_interleave(episodes, 0), episode_seed(cfg.seed, generation, 1))
+            elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
+            elite = population[elite_index]
+            elites.append(elite.clone())
+            slot = int((candidates == elite_index).nonzero()[0]) * episodes
+            elite_spikes = reeval.spikes[slot : slot + episodes].sum()
+            elite_steps = reeval.steps[slot : slot + episodes].sum()
+            mask1, mask2 = spn.masks(elite[None])
+            population = ga.next_generation(
+                population, fitness, sigma=algo.sigma, truncation=algo.truncation, generator=generator, elitism=algo.elitism
+            )
+            seconds = time.perf_counter() - t0
+            steps = fitness_eps.total_steps + reeval.total_steps
+            total_steps += steps
+            wall += seconds
+            row = {
+                "generation": generation,
+                "eval_return": elite_return,
+                "best_fitness": float(fitness.max()),
+                "mean_fitness": float(fitness.mean()),
+                "env_steps": steps,
+                "total_env_steps": total_steps,
+                "wall_time_s": round(wall, 3),
+                "steps_per_s": round(steps / seconds, 1),
+                "mask_density": float((mask1.sum() + mask2.sum()) / (mask1.numel() + mask2.numel())),
+                "spike_rate": float(elite_spikes / (elite_steps * algo.hidden * algo.time_steps)),
+                "elite_index": elite_index,
+            }
+            progress.append(row)
+            if logger is not None:
+                logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
+            checkpoint.save(
+                {
+                    "meta": meta,
+                    "config": OmegaConf.to_yaml(cfg, resolve=True),
+                    "run_name": run_name,
+                    "wandb_id": wandb_id,
+                    "generation": generation,
+                    "population": population,
+                    "fitness": fitness,
+                    "rng": generator.get_state(),
+                    "w1": w1,
+                    "w2": w2,
+                    "elites": torch.stack(elites),
+                    "total_env_steps": total_steps,
+                    "wall_time_s": wall,
+                },
+                run_dir,
+            )
+            log.info(
+                "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+                generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
+                total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
+            )
+    finally:
+        evaluator.close()
+        if logger is not None:
+            logger.close()
+    return row

@@ -1,0 +1,50 @@
+"""LIF and LI neuron dynamics of the SPN (SPEC.md), as plain tensor functions."""
+
+from __future__ import annotations
+
+import torch
+
+DECAY = 0.75
+V_TH = 0.5
+TIME_STEPS = 4
+
+
+def lif_step(
+    v: torch.Tensor, spikes: torch.Tensor, current: torch.Tensor, decay: float = DECAY, v_th: float = V_TH
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """One LIF step: the previous spike resets its neuron now; a spike is ``v > v_th`` (strict)."""
+    v = decay * v * (1.0 - spikes) + current
+    return v, (v > v_th).to(v.dtype)
+
+
+def li_step(v: torch.Tensor, current: torch.Tensor, decay: float = DECAY) -> torch.Tensor:
+    """One LI (leaky integrate, non-spiking) step."""
+    return decay * v + current
+
+
+def spn_dynamics(
+    w1: torch.Tensor,
+    w2: torch.Tensor,
+    obs: torch.Tensor,
+    time_steps: int = TIME_STEPS,
+    decay: float = DECAY,
+    v_th: float = V_TH,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Run the SPN for one environment step of a population.
+
+    w1 [P, h, n] and w2 [P, m, h] are the effective (masked) weights, obs [P, n] the observations held
+    constant for ``time_steps`` steps from a zero state. Returns the max over time of the output
+    potentials [P, m] and the hidden spike count per individual [P].
+    """
+    current = torch.bmm(w1, obs.unsqueeze(-1)).squeeze(-1)
+    v1 = torch.zeros_like(current)
+    s1 = torch.zeros_like(current)
+    v2 = obs.new_zeros(w2.shape[0], w2.shape[1])
+    out = None
+    spike_sum = torch.zeros_like(current)
+    for _ in range(time_steps):
+        v1, s1 = lif_step(v1, s1, current, decay, v_th)
+        spike_sum = spike_sum + s1
+        v2 = li_step(v2, torch.bmm(w2, s1.unsqueeze(-1)).squeeze(-1), decay)
+        out = v2 if out is None else torch.maximum(out, v2)
+    return out, spike_sum.sum(-1)

@@ -1,0 +1,131 @@
+"""The population SPN: fixed random weights, per-individual genomes, as a TensorDictModule."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from tensordict.nn import TensorDictModule
+from torch import nn
+
+from spn_torchrl import neurons
+
+GENOME_KINDS = ("connections", "weights")
+
+
+def init_fixed_weights(
+    n_obs: int, n_act: int, hidden: int, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Kaiming-normal (fan_in, relu) weights W1 [hidden, n_obs] and W2 [n_act, hidden], no bias."""
+    w1 = torch.empty(hidden, n_obs)
+    w2 = torch.empty(n_act, hidden)
+    nn.init.kaiming_normal_(w1, mode="fan_in", nonlinearity="relu", generator=generator)
+    nn.init.kaiming_normal_(w2, mode="fan_in", nonlinearity="relu", generator=generator)
+    return w1, w2
+
+
+def genome_size(w1: torch.Tensor, w2: torch.Tensor) -> int:
+    """Number of genes: one per synapse of both layers."""
+    return w1.numel() + w2.numel()
+
+
+class PopulationSPN(nn.Module):
+    """The SPN of SPEC.md for a population of genomes [P, D].
+
+    ``genome_kind="connections"``: genes are connection scores, a synapse exists where
+    ``sigmoid(score) >= score_threshold``, and its weight is the fixed one. ``"weights"``: genes are the
+    weights themselves (no mask). Call :meth:`set_genomes` once per genome set; :meth:`forward` maps
+    observations [P, n] to actions ([P, m] clipped, or [P] indices when ``discrete``) and the hidden
+    spike count [P] of that environment step.
+    """
+
+    def __init__(
+        self,
+        w1: torch.Tensor,
+        w2: torch.Tensor,
+        *,
+        genome_kind: str = "connections",
+        score_threshold: float = 0.5,
+        discrete: bool = False,
+        action_low: torch.Tensor | None = None,
+        action_high: torch.Tensor | None = None,
+        time_steps: int = neurons.TIME_STEPS,
+        decay: float = neurons.DECAY,
+        v_th: float = neurons.V_TH,
+    ) -> None:
+        super().__init__()
+        if genome_kind not in GENOME_KINDS:
+            raise ValueError(f"genome_kind must be one of {GENOME_KINDS}, got {genome_kind!r}")
+        if w1.ndim != 2 or w2.ndim != 2 or w2.shape[1] != w1.shape[0]:
+            raise ValueError(f"fixed weights must be [h, n] and [m, h], got {tuple(w1.shape)} and {tuple(w2.shape)}")
+        self.register_buffer("w1", w1.detach().clone().float())
+        self.register_buffer("w2", w2.detach().clone().float())
+        m = w2.shape[0]
+        low = torch.full((m,), -math.inf) if action_low is None else torch.as_tensor(action_low, dtype=torch.float32)
+        high = torch.full((m,), math.inf) if action_high is None else torch.as_tensor(action_high, dtype=torch.float32)
+        self.register_buffer("action_low", low.reshape(m).clone())
+        self.register_buffer("action_high", high.reshape(m).clone())
+        self.genome_kind = genome_kind
+        self.score_threshold = score_threshold
+        self.discrete = discrete
+        self.time_steps = time_steps
+        self.decay = decay
+        self.v_th = v_th
+        self.w1_eff: torch.Tensor | None = None
+        self.w2_eff: torch.Tensor | None = None
+
+    @property
+    def genome_size(self) -> int:
+        return genome_size(self.w1, self.w2)
+
+    def masks(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Connection masks [P, h, n] and [P, m, h] (all ones for weight genomes)."""
+        g1, g2 = self._split(genomes)
+        if self.genome_kind == "weights":
+            return torch.ones_like(g1, dtype=torch.bool), torch.ones_like(g2, dtype=torch.bool)
+        return torch.sigmoid(g1) >= self.score_threshold, torch.sigmoid(g2) >= self.score_threshold
+
+    def effective_weights(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-individual weights [P, h, n] and [P, m, h] that the forward pass uses."""
+        if self.genome_kind == "weights":
+            return self._split(genomes.to(self.w1))
+        x1, x2 = self.masks(genomes)
+        return self.w1 * x1, self.w2 * x2
+
+    def set_genomes(self, genomes: torch.Tensor) -> None:
+        """Compute the effective weights of a genome set once, for every later forward call."""
+        w1, w2 = self.effective_weights(genomes.to(self.w1.device))
+        self.w1_eff, self.w2_eff = w1.contiguous(), w2.contiguous()
+
+    def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if self.w1_eff is None:
+            raise RuntimeError("PopulationSPN.set_genomes(genomes) must be called before the forward pass")
+        obs = observation.to(self.w1_eff.dtype)
+        if obs.shape[0] != self.w1_eff.shape[0]:
+            raise ValueError(f"observation batch {obs.shape[0]} != number of genomes {self.w1_eff.shape[0]}")
+        out, spikes = neurons.spn_dynamics(self.w1_eff, self.w2_eff, obs, self.time_steps, self.decay, self.v_th)
+        action = out.argmax(-1) if self.discrete else torch.clamp(out, self.action_low, self.action_high)
+        return action, spikes
+
+    def _split(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if genomes.ndim != 2 or genomes.shape[1] != self.genome_size:
+            raise ValueError(f"genomes must be [P, {self.genome_size}], got {tuple(genomes.shape)}")
+        h, n = self.w1.shape
+        m = self.w2.shape[0]
+        p = genomes.shape[0]
+        return genomes[:, : h * n].reshape(p, h, n), genomes[:, h * n :].reshape(p, m, h)
+
+
+def spn_module(spn: PopulationSPN) -> TensorDictModule:
+    """Wrap a PopulationSPN to read ``observation`` and write ``action`` and ``hidden_spikes``."""
+    return TensorDictModule(spn, in_keys=["observation"], out_keys=["action", "hidden_spikes"])
+
+
+def build_spn(
+    w1: torch.Tensor, w2: torch.Tensor, genomes: torch.Tensor | None = None, **kwargs
+) -> PopulationSPN:
+    """Build the SPN from given fixed weights (e.g. a checkpoint or published run) and optional genomes."""
+    spn = PopulationSPN(w1, w2, **kwargs)
+    if genomes is not None:
+        spn.set_genomes(genomes.reshape(-1, spn.genome_size))
+    return spn

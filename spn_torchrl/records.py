@@ -1,0 +1,126 @@
+"""What a run writes: atomic files, progress.csv, and metrics through torchrl's loggers (CSV, W&B)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import netrc
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+log = logging.getLogger("spn_torchrl")
+
+
+def write_atomic(path: Path, data: bytes | str) -> None:
+    """Write a file so that a reader (or a killed run) sees either the old or the new content."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_torch_atomic(obj: Any, path: Path) -> None:
+    """``torch.save`` through :func:`write_atomic`."""
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    write_atomic(path, buf.getvalue())
+
+
+class Progress:
+    """progress.csv: one row per generation or iteration, rewritten atomically after each."""
+
+    def __init__(self, path: Path, keep_rows: int = 0) -> None:
+        self.path = Path(path)
+        self.rows: list[dict[str, Any]] = read_progress(self.path)[:keep_rows] if keep_rows else []
+        if keep_rows and len(self.rows) < keep_rows:
+            log.warning("%s holds %d rows, the checkpoint %d: earlier rows are missing", path, len(self.rows), keep_rows)
+        if self.path.exists():
+            self._write()
+
+    def append(self, row: Mapping[str, Any]) -> None:
+        self.rows.append(dict(row))
+        self._write()
+
+    def _write(self) -> None:
+        if not self.rows:
+            self.path.unlink(missing_ok=True)
+            return
+        out = io.StringIO()
+        writer = csv.DictWriter(out, fieldnames=list(self.rows[0]), extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(self.rows)
+        write_atomic(self.path, out.getvalue())
+
+
+def read_progress(path: Path) -> list[dict[str, Any]]:
+    """Rows of a progress.csv with numbers parsed (empty list if there is no file)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    with open(path, newline="") as f:
+        return [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def _number(text: str) -> Any:
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def wandb_mode(requested: str) -> str:
+    """'auto' is online only where W&B credentials exist (env var or netrc), else offline: no network probe."""
+    if requested != "auto":
+        return requested
+    if os.environ.get("WANDB_MODE"):
+        return os.environ["WANDB_MODE"]
+    if os.environ.get("WANDB_API_KEY"):
+        return "online"
+    try:
+        if netrc.netrc().authenticators("api.wandb.ai"):
+            return "online"
+    except (FileNotFoundError, netrc.NetrcParseError):
+        pass
+    return "offline"
+
+
+def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | None = None):
+    """A torchrl logger for the run (``None`` for ``logger.backend=none``)."""
+    backend = cfg.logger.backend
+    if backend == "none":
+        return None
+    if backend == "csv":
+        from torchrl.record.loggers import CSVLogger
+
+        return CSVLogger(exp_name=run_name, log_dir=str(run_dir / "logs"))
+    from torchrl.record.loggers import WandbLogger
+
+    mode = wandb_mode(cfg.logger.mode)
+    os.environ.setdefault("WANDB_SILENT", "true")
+    return WandbLogger(
+        exp_name=run_name,
+        save_dir=str(run_dir),
+        id=run_id,
+        project=cfg.logger.project,
+        entity=cfg.logger.entity,
+        group=cfg.logger.group,
+        mode=mode,
+        offline=mode == "offline",
+        config=OmegaConf.to_container(cfg, resolve=True),
+    )
