@@ -1,0 +1,73 @@
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+from spn_torchrl import ga
+from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
+from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights
+
+
+def setup(env_id, size, sigma):
+    spec = task_spec(env_id)
+    generator = torch.Generator().manual_seed(0)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, 64, generator)
+    kwargs = dict(discrete=spec.discrete, action_low=spec.action_low, action_high=spec.action_high)
+    spn = PopulationSPN(w1, w2, **kwargs)
+    genomes = ga.initial_population(size, spn.genome_size, sigma, generator)
+    return spec, spn, genomes, kwargs
+
+
+def plain_gymnasium_episode(env_id, spn_kwargs, w1, w2, genome, seed):
+    """The reference: one gymnasium env, one single-policy call per step."""
+    policy = build_spn(w1, w2, genome, **spn_kwargs)
+    env = gym.make(env_id)
+    env.reset(seed=seed)  # what set_seed does, then the evaluator's reset
+    obs, _ = env.reset()
+    total, steps, spikes, done = 0.0, 0, 0.0, False
+    while not done:
+        action, s = policy(torch.as_tensor(obs, dtype=torch.float32)[None])
+        a = int(action[0]) if spn_kwargs["discrete"] else action[0].numpy().astype(np.float64)
+        obs, reward, terminated, truncated, _ = env.step(a)
+        total, steps, spikes, done = total + reward, steps + 1, spikes + float(s[0]), terminated or truncated
+    env.close()
+    return total, steps, spikes
+
+
+@pytest.mark.parametrize("env_id,size,sigma", [("CartPole-v1", 6, 1.0), ("Swimmer-v5", 2, 1.0)])
+def test_rollout_equals_plain_gymnasium(env_id, size, sigma):
+    spec, spn, genomes, kwargs = setup(env_id, size, sigma)
+    evaluator = PopulationEvaluator(make_population_env(env_id, size), spn, spec.max_episode_steps)
+    try:
+        result = evaluator(genomes, seed=123)
+    finally:
+        evaluator.close()
+    for i in range(size):
+        ret, steps, spikes = plain_gymnasium_episode(env_id, kwargs, spn.w1, spn.w2, genomes[i], 123 + i)
+        assert result.steps[i] == steps
+        assert result.returns[i].item() == pytest.approx(ret, rel=1e-4, abs=1e-3)
+        assert result.spikes[i].item() == spikes
+    assert result.total_steps == int(result.steps.sum())
+
+
+def test_members_run_to_their_own_end_and_fewer_genomes_fill_leading_slots():
+    spec, spn, genomes, _ = setup("CartPole-v1", 8, 1.0)
+    evaluator = PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, spec.max_episode_steps)
+    try:
+        full = evaluator(genomes, seed=5)
+        part = evaluator(genomes[:3], seed=5)
+        again = evaluator(genomes, seed=5)
+    finally:
+        evaluator.close()
+    assert len(set(full.steps.tolist())) > 1  # episodes of different lengths, each counted to its own end
+    assert torch.equal(part.returns, full.returns[:3]) and torch.equal(part.steps, full.steps[:3])
+    assert torch.equal(again.returns, full.returns)
+    with pytest.raises(ValueError, match="holds 8 individuals"):
+        PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, 10)(torch.zeros(9, spn.genome_size), 0)
+
+
+def test_episode_seeds_differ_per_generation_and_phase():
+    seeds = {episode_seed(0, g, p) for g in range(50) for p in (0, 1)}
+    assert len(seeds) == 100 and all(0 <= s < 2**31 for s in seeds)
+    assert episode_seed(1, 3, 0) == episode_seed(1, 3, 0)

@@ -1,0 +1,42 @@
+import torch
+
+from spn_torchrl.neurons import li_step, lif_step, spn_dynamics
+
+
+def one_neuron(w1: float, w2: float, obs: float):
+    return spn_dynamics(torch.tensor([[[w1]]]), torch.tensor([[[w2]]]), torch.tensor([[obs]]))
+
+
+def test_hand_computed_case():
+    # v1: 0.3, 0.525 (spike), 0.3 (reset applied at this step), 0.525 (spike)
+    # v2: 0, 2, 1.5, 3.125  -> max 3.125, two hidden spikes
+    out, spikes = one_neuron(1.0, 2.0, 0.3)
+    assert torch.allclose(out, torch.tensor([[3.125]]))
+    assert spikes.tolist() == [2.0]
+
+
+def test_threshold_is_strict():
+    out, spikes = one_neuron(1.0, 1.0, 0.5)  # v1 = 0.5 at tau=1: no spike
+    assert spikes.tolist() == [2.0]  # tau=2: 0.875 spikes, tau=3: 0.5 (reset) no, tau=4: 0.875 spikes
+
+
+def test_output_max_excludes_initial_zero():
+    # spikes at every step: v2 = -1, -1.75, ... so the max is -1, not the initial 0
+    out, spikes = one_neuron(1.0, -1.0, 1.0)
+    assert torch.allclose(out, torch.tensor([[-1.0]]))
+    assert spikes.tolist() == [4.0]
+
+
+def test_lif_reset_and_li_leak():
+    v, s = lif_step(torch.tensor([0.8]), torch.tensor([1.0]), torch.tensor([0.1]))
+    assert torch.allclose(v, torch.tensor([0.1])) and s.item() == 0.0
+    v, s = lif_step(torch.tensor([0.8]), torch.tensor([0.0]), torch.tensor([0.1]))
+    assert torch.allclose(v, torch.tensor([0.7])) and s.item() == 1.0
+    assert torch.allclose(li_step(torch.tensor([2.0]), torch.tensor([1.0])), torch.tensor([2.5]))
+
+
+def test_state_starts_at_zero_each_call():
+    w1, w2, obs = torch.randn(3, 64, 5), torch.randn(3, 2, 64), torch.randn(3, 5)
+    first = spn_dynamics(w1, w2, obs)
+    second = spn_dynamics(w1, w2, obs)
+    assert torch.equal(first[0], second[0]) and torch.equal(first[1], second[1])
