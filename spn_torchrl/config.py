@@ -45,6 +45,13 @@ class EnvConfig:
 
 
 @dataclass
+class LocalEvaluatorConfig:
+    """Evaluate the population in this process, on the env of ``env.backend``."""
+
+    name: str = "local"
+
+
+@dataclass
 class LoggerConfig:
     backend: str = "csv"  # "csv", "wandb" or "none"
     project: str = "spn_torchrl"
@@ -59,6 +66,7 @@ class RunConfig:
     algo: Any = MISSING
     env: EnvConfig = MISSING
     logger: LoggerConfig = MISSING
+    evaluator: Any = MISSING
     seed: int = 0
     resume: bool = False
     torch_threads: int = 1
@@ -72,6 +80,7 @@ def register_configs() -> None:
     cs.store(group="algo", name="ga_schema", node=GAConfig)
     cs.store(group="env", name="env_schema", node=EnvConfig)
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
+    cs.store(group="evaluator", name="local_schema", node=LocalEvaluatorConfig)
 
 
 def _require(ok: bool, message: str) -> None:
@@ -119,6 +128,12 @@ def validate(cfg: DictConfig) -> None:
     _require(kind in ALGO_VALIDATORS, f"algo.kind must be one of {sorted(ALGO_VALIDATORS)}, got {kind!r}")
     ALGO_VALIDATORS[kind](cfg.algo)
     from spn_torchrl.envs import BACKENDS
+    from spn_torchrl.evaluate import EVALUATORS
+
+    _require(
+        cfg.evaluator.name in EVALUATORS,
+        f"evaluator.name must be one of {sorted(EVALUATORS)}, got {cfg.evaluator.name!r}",
+    )
 
     _require(
         cfg.env.backend in BACKENDS,

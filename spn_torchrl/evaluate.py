@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Protocol
 
 import numpy as np
 import torch
+from omegaconf import DictConfig
 from torchrl.envs import EnvBase
 
+from spn_torchrl.envs import TaskSpec, make_population_env
+from spn_torchrl.errors import ConfigError
 from spn_torchrl.policies import PopulationSPN, spn_module
 
 
@@ -80,3 +84,28 @@ class PopulationEvaluator:
     def close(self) -> None:
         if not self.env.is_closed:
             self.env.close()
+
+
+class Evaluator(Protocol):
+    """What the GA loop needs: genomes [B, D] and an env seed in, one episode per genome out."""
+
+    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes: ...
+
+    def close(self) -> None: ...
+
+
+def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> PopulationEvaluator:
+    """One batched env of ``algo.population`` copies in this process."""
+    env = make_population_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
+    return PopulationEvaluator(env, spn, spec.max_episode_steps)
+
+
+EVALUATORS: dict[str, Callable[[DictConfig, TaskSpec, PopulationSPN], Evaluator]] = {"local": local_evaluator}
+
+
+def make_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The evaluator named by ``evaluator.name``."""
+    name = cfg.evaluator.name
+    if name not in EVALUATORS:
+        raise ConfigError(f"evaluator.name must be one of {sorted(EVALUATORS)}, got {name!r}")
+    return EVALUATORS[name](cfg, spec, spn)

@@ -11,9 +11,9 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl import checkpoint, ga
-from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
+from spn_torchrl.evaluate import episode_seed, make_evaluator
 from spn_torchrl.policies import PopulationSPN, init_fixed_weights
 from spn_torchrl.records import Progress, make_logger
 
@@ -82,13 +82,14 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
 
     spn = spn_from_config(cfg, spec, w1, w2)
     progress = Progress(run_dir / "progress.csv", keep_rows=start)
-    logger = make_logger(cfg, run_dir, run_name, wandb_id)
-    wandb_id = getattr(getattr(logger, "experiment", None), "id", wandb_id) if cfg.logger.backend == "wandb" else None
-    env = make_population_env(spec.env_id, algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
-    evaluator = PopulationEvaluator(env, spn, spec.max_episode_steps)
+    evaluator = make_evaluator(cfg, spec, spn)
+    logger = None
     k, episodes = algo.elite_candidates, algo.elite_episodes
     row: dict[str, Any] = {}
     try:
+        logger = make_logger(cfg, run_dir, run_name, wandb_id)
+        if cfg.logger.backend == "wandb":
+            wandb_id = logger.experiment.id
         for generation in range(start + 1, algo.generations + 1):
             t0 = time.perf_counter()
             fitness_eps = evaluator(population, episode_seed(cfg.seed, generation, 0))
