@@ -88,3 +88,19 @@ def test_bad_config_value_fails_before_any_env(tmp_path):
     assert proc.returncode != 0 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().splitlines()[-1] == "error: algo.population must be even and >= 2 (mirrored pairs), got 7"
     assert not (tmp_path / "progress.csv").exists()
+
+
+def test_wandb_logger_runs_offline_without_credentials_and_finishes(tmp_path):
+    import os
+    import subprocess
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env["HOME"] = str(tmp_path)  # no netrc: logger.mode=auto must choose offline
+    proc = subprocess.run(
+        train_command(tmp_path / "run", "env=cartpole", "logger=wandb", *TINY),
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    runs = list((tmp_path / "run" / "wandb").glob("offline-run-*"))
+    assert len(runs) == 1 and list(runs[0].glob("*.wandb"))
+    assert len(read_progress(tmp_path / "run" / "progress.csv")) == 2
