@@ -51,8 +51,11 @@ def make_spn(env_id: str, seed: int = 0) -> PopulationSPN:
     return PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
 
 
-def generation(env_id: str, backend: str, population: int, threads: int, episode_steps: int) -> tuple[float, int]:
-    """One GA generation of SPEC.md (N episodes, top 10 x 10 re-evaluation, next generation): steps/s, steps."""
+def generation(
+    env_id: str, backend: str, population: int, threads: int, episode_steps: int
+) -> tuple[float, int, float | None]:
+    """One GA generation of SPEC.md (N episodes, top 10 x 10 re-evaluation, next generation): steps/s, steps
+    and, for mujoco_batch, the share of its wall time spent inside the physics call."""
     spn = make_spn(env_id)
     gen = torch.Generator().manual_seed(0)
     genomes = ga.initial_population(population, spn.genome_size, 0.01, gen)
@@ -70,7 +73,8 @@ def generation(env_id: str, backend: str, population: int, threads: int, episode
     finally:
         evaluator.close()
     steps = fitness.total_steps + reeval.total_steps
-    return steps / seconds, steps
+    physics = getattr(env.base_env, "physics_seconds", None)
+    return steps / seconds, steps, None if physics is None else physics / seconds
 
 
 def paper_way(env_id: str, steps: int) -> float:
@@ -111,10 +115,11 @@ def main() -> None:
 
     ceil = ceiling(args.env, args.population, args.threads, args.ceiling_steps)
     print(f"ceiling (mujoco.batch physics only, {args.threads} threads): {ceil:,.0f} env steps/s")
-    batch_sps, batch_steps = generation(args.env, "mujoco_batch", args.population, args.threads, args.episode_steps)
+    batch_sps, batch_steps, share = generation(args.env, "mujoco_batch", args.population, args.threads, args.episode_steps)
     print(f"generation mujoco_batch: {batch_steps:,} steps, {batch_sps:,.0f} env steps/s, {batch_sps / ceil:.3f} of ceiling")
+    print(f"  share of its wall time inside the physics call: {share:.3f}")
     if args.gym_episode_steps:
-        gym_sps, gym_steps = generation(args.env, "gymnasium", args.population, 1, args.gym_episode_steps)
+        gym_sps, gym_steps, _ = generation(args.env, "gymnasium", args.population, 1, args.gym_episode_steps)
         print(
             f"generation gymnasium (SyncVectorEnv): {gym_steps:,} steps, {gym_sps:,.0f} env steps/s, "
             f"{gym_sps / ceil:.3f} of ceiling; mujoco_batch is {batch_sps / gym_sps:.1f}x faster"

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import time
+
 import mujoco
 import numpy as np
 import torch
@@ -96,6 +98,7 @@ class MujocoBatchEnv(EnvBase):
             shape=(p,),
         )
         self._false = torch.zeros(p, 1, dtype=torch.bool)
+        self.physics_seconds = 0.0  # wall time inside the batched physics call (benchmarks read it)
 
     def _obs_size(self) -> int:
         m, task = self.model, self.task
@@ -190,7 +193,9 @@ class MujocoBatchEnv(EnvBase):
             self.ctrl[ids] = act
         if not task.standup:
             self._x_before[rows] = self.qpos[rows, 0]
+        t0 = time.perf_counter()
         self.batch.step(ids, nstep=task.frame_skip)
+        self.physics_seconds += time.perf_counter() - t0
         # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
         ctrl_cost = task.ctrl_cost_weight * np.square(act).sum(-1)
         if task.standup:
