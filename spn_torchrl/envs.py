@@ -22,6 +22,7 @@ from torchrl.envs import (
 from torchrl.data import Categorical
 
 from spn_torchrl.errors import ConfigError
+from spn_torchrl.mujoco_batch import mujoco_batch_backend
 
 TASKS = {
     "cartpole": "CartPole-v1",
@@ -94,7 +95,10 @@ def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBa
     return TransformedEnv(parallel, BatchSizeTransform(reshape_fn=lambda td: td.reshape(num_envs)))
 
 
-BACKENDS: dict[str, Callable[..., EnvBase]] = {"gymnasium": gymnasium_backend}
+BACKENDS: dict[str, Callable[..., EnvBase]] = {
+    "gymnasium": gymnasium_backend,
+    "mujoco_batch": mujoco_batch_backend,  # HalfCheetah, Swimmer, HumanoidStandup v5 only
+}
 
 
 def register_backend(name: str, factory: Callable[..., EnvBase]) -> None:

@@ -37,7 +37,8 @@ class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
     The env (batch [P]) is built once and reused; a call with fewer than P genomes leaves the
-    remaining slots out of every result.
+    remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
+    mask: a backend that honours it (mujoco_batch) does not simulate them, others ignore it.
     """
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
@@ -61,11 +62,16 @@ class PopulationEvaluator:
         steps = torch.zeros(self.size, dtype=torch.long)
         spikes = torch.zeros(self.size)
 
+        partial = count < self.size
         self.env.set_seed(seed)
         td = self.env.reset()
         for _ in range(self.max_episode_steps):
-            td = self.policy(td)
-            spikes += td.get("hidden_spikes") * active
+            # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
+            action, hidden_spikes = self.spn(td.get("observation"))
+            td.set("action", action)
+            spikes += hidden_spikes * active
+            if partial:  # backends that honour TorchRL's partial-step mask skip the idle slots' physics
+                td.set("_step", active.clone())
             td, td_next = self.env.step_and_maybe_reset(td)
             nxt = td.get("next")
             finished = nxt.get("done").reshape(self.size) & active
@@ -73,6 +79,7 @@ class PopulationEvaluator:
                 returns[finished] = nxt.get("episode_reward").reshape(self.size)[finished]
                 steps[finished] = nxt.get("step_count").reshape(self.size)[finished]
                 active &= ~finished
+                partial = True
                 if not active.any():
                     break
             td = td_next

@@ -1,0 +1,121 @@
+"""The mujoco_batch backend against Gymnasium v5: same resets, observations, rewards and episode returns."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from tensordict import TensorDict
+
+from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.errors import ConfigError
+from spn_torchrl.evaluate import PopulationEvaluator
+from spn_torchrl.mujoco_batch import MujocoBatchEnv
+from spn_torchrl.policies import PopulationSPN, init_fixed_weights
+
+TASKS = ["HalfCheetah-v5", "Swimmer-v5", "HumanoidStandup-v5"]
+TOL = 1e-6
+
+
+def gym_envs(env_id: str, count: int, seed: int) -> tuple[list[gym.Env], np.ndarray]:
+    """Gymnasium envs seeded as GymWrapper.set_seed + reset seeds a vector env: reset(seed+i), then reset()."""
+    envs = [gym.make(env_id) for _ in range(count)]
+    obs = []
+    for i, env in enumerate(envs):
+        env.reset(seed=seed + i)
+        obs.append(env.reset()[0])
+    return envs, np.stack(obs)
+
+
+@pytest.mark.parametrize("env_id", TASKS)
+def test_steps_match_gymnasium(env_id: str) -> None:
+    count, seed = 3, 11
+    env = MujocoBatchEnv(env_id, count)
+    env.set_seed(seed)
+    td = env.reset()
+    envs, obs = gym_envs(env_id, count, seed)
+    np.testing.assert_allclose(env._obs, obs, rtol=0, atol=TOL)
+    np.testing.assert_array_equal(td["observation"].numpy(), obs.astype(np.float32))
+    rng = np.random.default_rng(0)
+    low, high = envs[0].action_space.low, envs[0].action_space.high
+    impact_seen = False
+    for _ in range(200):
+        action = rng.uniform(low, high, size=(count, len(low))).astype(np.float32)
+        td["action"] = torch.from_numpy(action)
+        nxt = env.step(td)["next"]
+        for i, genv in enumerate(envs):
+            o, r, terminated, truncated, info = genv.step(action[i])
+            np.testing.assert_allclose(env._obs[i], o, rtol=0, atol=TOL)
+            assert abs(env._reward[i] - r) <= TOL
+            assert nxt["reward"][i, 0].item() == np.float32(r)
+            assert not nxt["done"][i, 0] and not terminated and not truncated
+            impact_seen |= info.get("reward_impact", 0.0) < 0
+        td = nxt.clone()
+    if env_id == "HumanoidStandup-v5":  # contact forces enter both the observation and the reward
+        assert impact_seen
+        assert np.abs(env.cfrc_ext[:, 1:]).max() > 0
+
+
+@pytest.mark.parametrize("env_id", ["HalfCheetah-v5", "HumanoidStandup-v5"])
+def test_partial_reset_and_step_follow_gymnasium(env_id: str) -> None:
+    count, seed = 3, 5
+    env = MujocoBatchEnv(env_id, count)
+    env.set_seed(seed)
+    env.reset()
+    envs, _ = gym_envs(env_id, count, seed)
+    before = env._obs.copy()
+    # reset sub-env 1 only: it draws its next reset state, as Gymnasium's env 1 does
+    td = env.reset(TensorDict({"_reset": torch.tensor([[False], [True], [False]])}, batch_size=[count]))
+    np.testing.assert_allclose(env._obs[1], envs[1].reset()[0], rtol=0, atol=TOL)
+    np.testing.assert_array_equal(env._obs[[0, 2]], before[[0, 2]])
+    # step sims 0 and 1 only: sim 2 must not move
+    action = np.full((count, env.model.nu), 0.3, dtype=np.float32)
+    td["action"] = torch.from_numpy(action)
+    td["_step"] = torch.tensor([True, True, False])
+    nxt = env.step(td)["next"]
+    for i in (0, 1):
+        o, r, *_ = envs[i].step(action[i])
+        np.testing.assert_allclose(env._obs[i], o, rtol=0, atol=TOL)
+        assert abs(env._reward[i] - r) <= TOL
+    np.testing.assert_array_equal(env._obs[2], before[2])
+    assert nxt["reward"][2, 0] == 0 and env._elapsed.tolist() == [1, 1, 0]
+
+
+def test_time_limit_truncates_at_1000_steps() -> None:
+    env = make_population_env("Swimmer-v5", 2, backend="mujoco_batch")
+    env.set_seed(0)
+    td = env.reset()
+    for step in range(1, 1001):
+        td["action"] = torch.zeros(2, 2)
+        nxt = env.step(td)["next"]
+        assert bool(nxt["truncated"].all()) == (step == 1000)
+        assert bool(nxt["done"].all()) == (step == 1000) and not nxt["terminated"].any()
+        td = nxt.exclude("reward", "done", "terminated", "truncated")
+    assert nxt["step_count"].flatten().tolist() == [1000, 1000]
+
+
+@pytest.mark.parametrize("env_id,steps", [("HalfCheetah-v5", 150), ("Swimmer-v5", 150), ("HumanoidStandup-v5", 40)])
+def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
+    """A population of SPNs, 3 genomes on 4 slots (an idle slot), through PopulationEvaluator on both backends."""
+    torch.set_num_threads(1)
+    spec = task_spec(env_id)
+    gen = torch.Generator().manual_seed(1)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, 64, gen)
+    spn = PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
+    genomes = torch.randn(3, spn.genome_size, generator=gen)
+    results = {}
+    for backend in ("gymnasium", "mujoco_batch"):
+        evaluator = PopulationEvaluator(make_population_env(env_id, 4, backend=backend), spn, steps)
+        results[backend] = evaluator(genomes, seed=123)
+        evaluator.close()
+    ref, got = results["gymnasium"], results["mujoco_batch"]
+    assert torch.equal(got.steps, ref.steps) and got.total_steps == 3 * steps
+    torch.testing.assert_close(got.returns, ref.returns, rtol=1e-6, atol=1e-6)
+    assert torch.equal(got.spikes, ref.spikes)
+    assert ref.returns.std() > 0  # the genomes behave differently: the comparison has teeth
+
+
+def test_unknown_id_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="mujoco_batch supports"):
+        make_population_env("Hopper-v5", 2, backend="mujoco_batch")
