@@ -9,7 +9,6 @@ from typing import Callable
 import gymnasium as gym
 import torch
 from torchrl.envs import (
-    BatchSizeTransform,
     Compose,
     DoubleToFloat,
     EnvBase,
@@ -84,15 +83,13 @@ def _gym_vector_env(env_id: str, num_envs: int) -> EnvBase:
 
 
 def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:
-    """``GymWrapper`` around one ``SyncVectorEnv`` of ``num_envs`` copies, or ``num_workers`` of them
-    in a ``ParallelEnv`` (flattened to batch [num_envs]) when ``num_workers > 1``."""
+    """``GymWrapper`` around one ``SyncVectorEnv`` of ``num_envs`` copies, or, when ``num_workers > 1``,
+    a ``ParallelEnv`` of ``num_workers`` such envs (batch [num_workers, num_envs / num_workers])."""
     if num_workers <= 1:
         return _gym_vector_env(env_id, num_envs)
     if num_envs % num_workers:
         raise ConfigError(f"env.num_workers={num_workers} must divide the number of envs {num_envs}")
-    chunk = num_envs // num_workers
-    parallel = ParallelEnv(num_workers, functools.partial(_gym_vector_env, env_id, chunk))
-    return TransformedEnv(parallel, BatchSizeTransform(reshape_fn=lambda td: td.reshape(num_envs)))
+    return ParallelEnv(num_workers, functools.partial(_gym_vector_env, env_id, num_envs // num_workers))
 
 
 BACKENDS: dict[str, Callable[..., EnvBase]] = {

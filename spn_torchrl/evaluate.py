@@ -12,7 +12,7 @@ from torchrl.envs import EnvBase
 
 from spn_torchrl.envs import TaskSpec, make_population_env
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.policies import PopulationSPN, spn_module
+from spn_torchrl.policies import PopulationSPN
 
 
 @dataclass
@@ -36,18 +36,16 @@ def episode_seed(run_seed: int, generation: int, phase: int) -> int:
 class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
-    The env (batch [P]) is built once and reused; a call with fewer than P genomes leaves the
+    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; a call with fewer than P genomes leaves the
     remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
     mask: a backend that honours it (mujoco_batch) does not simulate them, others ignore it.
     """
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
-        if len(env.batch_size) != 1:
-            raise ValueError(f"expected an env with batch size [P], got {tuple(env.batch_size)}")
         self.env = env
         self.spn = spn
-        self.policy = spn_module(spn)
-        self.size = env.batch_size[0]
+        self.shape = env.batch_size
+        self.size = env.batch_size.numel()
         self.max_episode_steps = max_episode_steps
 
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
@@ -62,15 +60,18 @@ class PopulationEvaluator:
         steps = torch.zeros(self.size, dtype=torch.long)
         spikes = torch.zeros(self.size)
 
-        partial = count < self.size
+        # a one-process env takes TorchRL's per-slot "_step" mask (mujoco_batch skips idle slots, GymWrapper
+        # ignores it); a ParallelEnv only takes masks of whole workers, so it gets none
+        masks = len(self.shape) == 1
+        partial = masks and count < self.size
         self.env.set_seed(seed)
         td = self.env.reset()
         for _ in range(self.max_episode_steps):
             # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
-            action, hidden_spikes = self.spn(td.get("observation"))
-            td.set("action", action)
+            action, hidden_spikes = self.spn(td.get("observation").reshape(self.size, -1))
+            td.set("action", action.reshape(*self.shape, *action.shape[1:]))
             spikes += hidden_spikes * active
-            if partial:  # backends that honour TorchRL's partial-step mask skip the idle slots' physics
+            if partial:
                 td.set("_step", active.clone())
             td, td_next = self.env.step_and_maybe_reset(td)
             nxt = td.get("next")
@@ -79,7 +80,7 @@ class PopulationEvaluator:
                 returns[finished] = nxt.get("episode_reward").reshape(self.size)[finished]
                 steps[finished] = nxt.get("step_count").reshape(self.size)[finished]
                 active &= ~finished
-                partial = True
+                partial = masks
                 if not active.any():
                     break
             td = td_next

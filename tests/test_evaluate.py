@@ -71,3 +71,18 @@ def test_episode_seeds_differ_per_generation_and_phase():
     seeds = {episode_seed(0, g, p) for g in range(50) for p in (0, 1)}
     assert len(seeds) == 100 and all(0 <= s < 2**31 for s in seeds)
     assert episode_seed(1, 3, 0) == episode_seed(1, 3, 0)
+
+
+def test_two_worker_processes_give_the_same_episodes_for_the_first_workers_slots():
+    spec, spn, genomes, _ = setup("CartPole-v1", 8, 1.0)
+    one = PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, spec.max_episode_steps)
+    two = PopulationEvaluator(make_population_env("CartPole-v1", 8, num_workers=2), spn, spec.max_episode_steps)
+    try:
+        a, b = one(genomes, seed=11), two(genomes, seed=11)
+        part = two(genomes[:6], seed=11)
+    finally:
+        one.close()
+        two.close()
+    # worker 0 is seeded like the single process; ParallelEnv derives worker 1's seed on its own
+    assert torch.equal(a.returns[:4], b.returns[:4]) and torch.equal(a.steps[:4], b.steps[:4])
+    assert part.returns.shape == (6,) and torch.equal(part.returns, b.returns[:6])
