@@ -113,6 +113,7 @@ def sig(value: float | None, digits: int = 3) -> str:
     """A number in the paper's style (3 significant digits, e-notation for large values); '-' for None."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "-"
-    if value != 0 and (abs(value) >= 1e4 or abs(value) < 1e-2):
-        return f"{value:.{digits - 1}e}"
+    if value != 0 and (abs(value) >= 1e3 or abs(value) < 1e-2):
+        mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+        return f"{mantissa}e{int(exponent)}"
     return f"{value:.{digits}g}"

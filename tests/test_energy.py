@@ -103,3 +103,10 @@ def test_spn_counts_and_rate_readings():
 def test_first_generation_at():
     assert energy.first_generation_at([1.0, 5.0, 10.0, 3.0], 5.0) == 2
     assert energy.first_generation_at([1.0, 2.0], 5.0) is None
+
+
+def test_sig_prints_like_the_paper():
+    assert energy.sig(6771.2) == "6.77e3"
+    assert energy.sig(6.156e11) == "6.16e11"
+    assert energy.sig(18.3) == "18.3"
+    assert energy.sig(None) == "-"
