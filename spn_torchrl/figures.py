@@ -40,6 +40,7 @@ def task_figure(
         ax.legend(fontsize=8)
     by_gen.set_xlabel("generation")
     by_steps.set_xlabel("env steps")
+    by_steps.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     by_gen.set_title(f"{title}: return vs generation (GA)")
     by_steps.set_title(f"{title}: return vs env steps")
     fig.text(0.5, 0.005, "line: mean over seeds; band: +- half a std over seeds", ha="center", fontsize=8)
