@@ -176,7 +176,7 @@ def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
     """The report section of one task: curves, final returns, Tables 1-4 of the paper."""
     out = [f"## {s['env_id']} (n={s['n']}, m={s['m']})", "", f"![learning curves]({figure})", ""]
     level = s["ppo_level"]
-    out.append(f"PPO level R: {'none' if level is None else sig(level, 6)} ({s['ppo_level_source']}).")
+    out.append(f"PPO level R: {'none' if level is None else f'{level:.2f}'} ({s['ppo_level_source']}).")
     if not any(m["kind"] == "ppo" for m in s["methods"].values()):
         out.append("No PPO run found for this task: the PPO curve and a measured E_PPO are missing.")
     out.append("")
@@ -190,7 +190,7 @@ def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
         out.append("Not computed: no PPO level (run dpn_ppo or pass --ppo-level).")
     else:
         rows = [
-            [algo, sig(level, 6), e["G"] if e["G"] is not None else "not reached", sig(e["E"]), "-" if e["gamma"] is None else f"**{e['gamma']:.2f}**", f"{e['seeds_reaching']}/{e['seeds']}"]
+            [algo, f"{level:.2f}", e["G"] if e["G"] is not None else "not reached", sig(e["E"]), "-" if e["gamma"] is None else f"**{e['gamma']:.2f}**", f"{e['seeds_reaching']}/{e['seeds']}"]
             for algo, e in s["data_efficiency"].items()
         ]
         out += _table(["method", "R", "G", "E (env steps)", "gamma = E / PPO steps", "seeds reaching R"], rows)
