@@ -22,15 +22,26 @@ def _band(ax, x, runs: Sequence[RunRecord], label: str, color: str | None) -> No
 
 
 def task_figure(
-    title: str, algos: dict[str, list[RunRecord]], ppo_level: float | None, path: Path
+    title: str,
+    algos: dict[str, list[RunRecord]],
+    ppo_level: float | None,
+    path: Path,
+    reached: dict[str, int | None] | None = None,
 ) -> Path:
-    """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task."""
+    """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task.
+
+    ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line).
+    """
     fig, (by_gen, by_steps) = plt.subplots(1, 2, figsize=(11, 4))
     for algo, runs in sorted(algos.items()):
         color = COLORS.get(algo)
         steps = pooled(runs, "total_env_steps").mean(axis=0)
         if runs[0].kind == "ga":
             _band(by_gen, pooled(runs, "generation")[0], runs, algo, color)
+            generation = (reached or {}).get(algo)
+            if generation is not None:
+                by_gen.axvline(generation, color=color, linestyle=":", linewidth=1, label=f"{algo} reaches R: G={generation}")
+                by_steps.axvline(steps[generation - 1], color=color, linestyle=":", linewidth=1)
         _band(by_steps, steps, runs, algo, color)
     for ax in (by_gen, by_steps):
         if ppo_level is not None:

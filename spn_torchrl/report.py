@@ -22,6 +22,7 @@ from spn_torchrl.figures import task_figure
 from spn_torchrl.runs import RunRecord, find_runs, group_runs, last_value, mean_std, pooled
 
 PPO_LEVEL_ALGO = "dpn_ppo"
+PAPER_BUDGET = {"generations": 100, "population": 200, "elite_candidates": 10, "elite_episodes": 10}
 
 
 def _nan_to_none(value: float) -> float | None:
@@ -31,8 +32,10 @@ def _nan_to_none(value: float) -> float | None:
 def method_summary(runs: Sequence[RunRecord]) -> dict[str, Any]:
     """Seeds, length, env steps and final return (mean and std over seeds) of one method on one task."""
     final = pooled(runs, "eval_return")[:, -1]
+    algo = runs[0].config.algo
     return {
         "kind": runs[0].kind,
+        "budget": {k: algo[k] for k in ("generations", "population", "elite_candidates", "elite_episodes") if k in algo},
         "seeds": sorted(run.seed for run in runs),
         "rows": min(len(run.rows) for run in runs),
         "total_env_steps": last_value(runs, "total_env_steps"),
@@ -168,6 +171,13 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
     return lines
 
 
+def _budget(budget: dict[str, Any]) -> str:
+    """The GA budget of a method, marked where it differs from the paper's."""
+    text = ", ".join(f"{k}={v}" for k, v in budget.items())
+    differs = [k for k, v in budget.items() if PAPER_BUDGET.get(k, v) != v]
+    return f"{text} (not the paper's: {', '.join(differs)})" if differs else text
+
+
 def _ratio(value: float | None) -> str:
     return "-" if value is None else f"**{value:.1f}**"
 
@@ -181,10 +191,12 @@ def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
         out.append("No PPO run found for this task: the PPO curve and a measured E_PPO are missing.")
     out.append("")
     rows = [
-        [algo, m["kind"], len(m["seeds"]), m["rows"], sig(m["total_env_steps"]), f"{m['final_return_mean']:.2f} +- {m['final_return_std']:.2f}"]
+        [algo, m["kind"], _budget(m["budget"]), len(m["seeds"]), m["rows"], sig(m["total_env_steps"]),
+         f"{m['final_return_mean']:.2f} +- {m['final_return_std']:.2f}"]
         for algo, m in s["methods"].items()
     ]
-    out += _table(["method", "kind", "seeds", "generations / iterations", "env steps (mean)", "final return, mean +- std over seeds"], rows)
+    out += _table(["method", "kind", "budget", "seeds", "generations / iterations done", "env steps (mean)",
+                   "final return, mean +- std over seeds"], rows)
     out += ["", "### Data efficiency (paper Table: R, G, E, gamma)", ""]
     if level is None:
         out.append("Not computed: no PPO level (run dpn_ppo or pass --ppo-level).")
@@ -232,12 +244,19 @@ def build_report(paths: Sequence[str | Path], out: Path, level: float | None = N
     for env, algos in group_runs(runs).items():
         summary = task_summary(env, algos, level)
         figure = f"{env}.png"
-        task_figure(summary["env_id"], algos, summary["ppo_level"], out / figure)
+        reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
+        task_figure(summary["env_id"], algos, summary["ppo_level"], out / figure, reached)
         summaries[env], figures[env] = summary, str(out / figure)
         lines += task_markdown(summary, figure)
     (out / "report.md").write_text("\n".join(lines))
     (out / "report.json").write_text(json.dumps(summaries, indent=2, default=float))
-    return {"tasks": summaries, "figures": figures, "markdown": str(out / "report.md")}
+    backends = {run.config.get("logger", {}).get("backend") for run in runs}
+    return {
+        "tasks": summaries,
+        "figures": figures,
+        "markdown": str(out / "report.md"),
+        "wandb_projects": sorted({str(run.config.logger.project) for run in runs}) if backends == {"wandb"} else [],
+    }
 
 
 def log_to_wandb(result: dict[str, Any], project: str) -> None:
@@ -266,13 +285,15 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("paths", nargs="+", help="run or multirun directories (searched recursively)")
     parser.add_argument("--ppo-level", type=float, default=None, help="PPO level R (default: from dpn_ppo runs found)")
     parser.add_argument("--out", type=Path, default=Path("report"), help="output directory (default: ./report)")
-    parser.add_argument("--wandb", action="store_true", help="also log figures and tables to W&B")
-    parser.add_argument("--wandb-project", default="spn_torchrl")
+    parser.add_argument(
+        "--wandb", action="store_true", help="also log figures and tables to W&B (automatic when every run used logger=wandb)"
+    )
+    parser.add_argument("--wandb-project", default=None, help="W&B project (default: the runs' logger.project, else spn_torchrl)")
     args = parser.parse_args(argv)
     np.seterr(all="ignore")
     result = build_report(args.paths, args.out, args.ppo_level)
-    if args.wandb:
-        log_to_wandb(result, args.wandb_project)
+    if args.wandb or result["wandb_projects"]:
+        log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
     print(f"wrote {result['markdown']} ({len(result['tasks'])} task(s))")
 
 

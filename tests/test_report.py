@@ -3,6 +3,7 @@
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -58,6 +59,7 @@ def test_report_cli_over_a_multirun(multirun, tmp_path):
     md = (out / "report.md").read_text()
     assert (out / "cartpole.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "No PPO run found" in md and "PPO level R: none" in md
+    assert "(not the paper's: generations, population, elite_candidates, elite_episodes)" in md
     data = json.loads((out / "report.json").read_text())["cartpole"]
 
     rows = csv_rows(multirun)
@@ -111,6 +113,15 @@ def test_ppo_runs_set_the_level_and_the_ppo_energy(multirun, tmp_path):
     assert task["ppo"]["e_ppo"] == pytest.approx((e_dpn + e_dvn) * 2000 * (26 + 25))
     assert task["ppo"]["env_steps"] == 2000
     assert "No PPO run found" not in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_runs_logged_to_wandb_send_the_report_there(multirun, tmp_path):
+    copy = tmp_path / "runs"
+    shutil.copytree(multirun, copy)
+    assert build_report([copy], tmp_path / "a")["wandb_projects"] == []
+    for config in copy.rglob(".hydra/config.yaml"):
+        config.write_text(config.read_text().replace("backend: csv\n  project: spn_torchrl", "backend: wandb\n  project: my_proj"))
+    assert build_report([copy], tmp_path / "b")["wandb_projects"] == ["my_proj"]
 
 
 def test_report_to_wandb_offline(multirun, tmp_path):
