@@ -54,8 +54,12 @@ def csv_rows(multirun: Path) -> list[list[dict]]:
 
 
 def test_report_cli_over_a_multirun(multirun, tmp_path):
+    """The command writes report.md, report.json, the figure, and (--wandb, offline here) a W&B run."""
     out = tmp_path / "report"
-    subprocess.run([sys.executable, "-m", "spn_torchrl.report", str(multirun), "--out", str(out)], cwd=ROOT, check=True, timeout=120)
+    env = dict(os.environ, WANDB_MODE="offline", WANDB_SILENT="true")
+    cmd = [sys.executable, "-m", "spn_torchrl.report", str(multirun), "--out", str(out), "--wandb"]
+    subprocess.run(cmd, cwd=ROOT, env=env, check=True, timeout=180)
+    assert list((out / "wandb").glob("offline-run-*"))
     md = (out / "report.md").read_text()
     assert (out / "cartpole.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "No PPO run found" in md and "PPO level R: none" in md
@@ -122,12 +126,3 @@ def test_runs_logged_to_wandb_send_the_report_there(multirun, tmp_path):
     for config in copy.rglob(".hydra/config.yaml"):
         config.write_text(config.read_text().replace("backend: csv\n  project: spn_torchrl", "backend: wandb\n  project: my_proj"))
     assert build_report([copy], tmp_path / "b")["wandb_projects"] == ["my_proj"]
-
-
-def test_report_to_wandb_offline(multirun, tmp_path):
-    env = dict(os.environ, WANDB_MODE="offline", WANDB_SILENT="true")
-    out = tmp_path / "report"
-    subprocess.run(
-        [sys.executable, "-m", "spn_torchrl.report", str(multirun), "--out", str(out), "--wandb"], cwd=ROOT, env=env, check=True, timeout=180
-    )
-    assert list((out / "wandb").glob("offline-run-*"))
