@@ -121,6 +121,8 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "steps_per_s": round(steps / seconds, 1),
                 "mask_density": float((mask1.sum() + mask2.sum()) / (mask1.numel() + mask2.numel())),
                 "spike_rate": float(elite_spikes / (elite_steps * algo.hidden * algo.time_steps)),
+                "synapses_l1": int(mask1.sum()),
+                "synapses_l2": int(mask2.sum()),
                 "elite_index": elite_index,
             }
             progress.append(row)

@@ -1,0 +1,62 @@
+"""Learning-curve figures of the report (matplotlib, Agg backend): mean and half-std band over seeds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from spn_torchrl.runs import RunRecord, mean_std, pooled  # noqa: E402
+
+COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red", "conn_ppo": "tab:green"}
+
+
+def _band(ax, x, runs: Sequence[RunRecord], label: str, color: str | None) -> None:
+    mean, std = mean_std(pooled(runs, "eval_return"))
+    line = ax.plot(x, mean, label=f"{label} ({len(runs)} seeds)", color=color)[0]
+    ax.fill_between(x, mean - std / 2, mean + std / 2, alpha=0.25, color=line.get_color(), linewidth=0)
+
+
+def task_figure(
+    title: str,
+    algos: dict[str, list[RunRecord]],
+    ppo_level: float | None,
+    path: Path,
+    reached: dict[str, int | None] | None = None,
+) -> Path:
+    """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task.
+
+    ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line).
+    """
+    fig, (by_gen, by_steps) = plt.subplots(1, 2, figsize=(11, 4))
+    for algo, runs in sorted(algos.items()):
+        color = COLORS.get(algo)
+        steps = pooled(runs, "total_env_steps").mean(axis=0)
+        if runs[0].kind == "ga":
+            _band(by_gen, pooled(runs, "generation")[0], runs, algo, color)
+            generation = (reached or {}).get(algo)
+            if generation is not None:
+                by_gen.axvline(generation, color=color, linestyle=":", linewidth=1, label=f"{algo} reaches R: G={generation}")
+                by_steps.axvline(steps[generation - 1], color=color, linestyle=":", linewidth=1)
+        _band(by_steps, steps, runs, algo, color)
+    for ax in (by_gen, by_steps):
+        if ppo_level is not None:
+            ax.axhline(ppo_level, color="red", linestyle="--", linewidth=1, label=f"PPO level {ppo_level:.4g}")
+        ax.set_ylabel("return (elite, mean of eval episodes)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    by_gen.set_xlabel("generation")
+    by_steps.set_xlabel("env steps")
+    by_steps.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+    by_gen.set_title(f"{title}: return vs generation (GA)")
+    by_steps.set_title(f"{title}: return vs env steps")
+    fig.text(0.5, 0.005, "line: mean over seeds; band: +- half a std over seeds", ha="center", fontsize=8)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
