@@ -156,7 +156,7 @@ class TrainableSPN(nn.Module):
         for g in (g1[0], g2[0]):
             soft = torch.sigmoid(g)
             hard = (soft >= self.spn.score_threshold).to(soft.dtype)
-            out.append(hard + soft - soft.detach())
+            out.append(hard + (soft - soft.detach()))  # exactly the hard mask, d sigmoid backward
         return out[0], out[1]
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
