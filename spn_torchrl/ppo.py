@@ -16,7 +16,6 @@ from typing import Any
 
 import torch
 from omegaconf import DictConfig, OmegaConf
-from tensordict import TensorDictBase
 from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.collectors import Collector
@@ -262,6 +261,7 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "train_episodes": int(finished.numel()),
                 **{key: value / updates for key, value in sums.items()},
                 "log_std": float(_log_std(actor)) if not spec.discrete else math.nan,
+                "mask_density": _mask_density(actor),
                 "wall_time_s": round(wall, 3),
                 "steps_per_s": round(frames / seconds, 1),
                 **counts.values,
@@ -308,6 +308,15 @@ def _log_std(actor: ProbabilisticActor) -> torch.Tensor:
         if isinstance(module, AddStateIndependentNormalScale):
             return module.state_independent_scale.detach().mean()
     return torch.tensor(math.nan)
+
+
+def _mask_density(actor: ProbabilisticActor) -> float:
+    """Fraction of existing synapses of a trainable SPN (NaN for the DPN)."""
+    for module in actor.modules():
+        if isinstance(module, TrainableSPN):
+            x1, x2 = module.masks()
+            return float((x1.sum() + x2.sum()) / (x1.numel() + x2.numel()))
+    return math.nan
 
 
 def load_actor(run_dir: Path, cfg: DictConfig) -> tuple[ProbabilisticActor, TaskSpec]:
