@@ -37,6 +37,38 @@ class GAConfig:
 
 
 @dataclass
+class PPOConfig:
+    """DPN-PPO / Connections-PPO (SPEC.md, paper appendix): 1e6 steps as 1e3 iterations of 1e3 steps,
+    25 epochs of minibatches of 100, Adam 1e-5 (policy) / 1e-4 (value), gamma 0.99, lambda 0.95, clip 0.2."""
+
+    name: str = "dpn_ppo"
+    kind: str = "ppo"
+    policy: str = "dpn"  # "dpn" (n -> hidden ReLU -> m Tanh) or "spn" (the GA's SPN, its scores trained)
+    total_env_steps: int = 1_000_000
+    frames_per_batch: int = 1000  # env steps per iteration
+    epochs: int = 25
+    minibatch_size: int = 100
+    lr_policy: float = 1e-5
+    lr_value: float = 1e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_epsilon: float = 0.2
+    normalize_advantage: bool = True  # Spinning Up normalises advantages per batch
+    hidden: int = 64
+    log_std_init: float = -0.5  # Spinning Up's initial log-std of the Gaussian
+    eval_interval: int = 10  # iterations between deterministic evaluations (the last one is always evaluated)
+    eval_episodes: int = 10
+    # Connections-PPO (policy=spn): the GA's SPN and its scores' initial spread
+    surrogate: str = "fast_sigmoid"  # spike derivative: "fast_sigmoid" or "atan"
+    surrogate_alpha: float = 2.0
+    score_init_std: float = 0.01
+    score_threshold: float = 0.5
+    time_steps: int = 4
+    decay: float = 0.75
+    v_threshold: float = 0.5
+
+
+@dataclass
 class EnvConfig:
     name: str = MISSING
     id: str = MISSING
@@ -78,6 +110,7 @@ def register_configs() -> None:
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
     cs.store(group="algo", name="ga_schema", node=GAConfig)
+    cs.store(group="algo", name="ppo_schema", node=PPOConfig)
     cs.store(group="env", name="env_schema", node=EnvConfig)
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
     cs.store(group="evaluator", name="local_schema", node=LocalEvaluatorConfig)
@@ -122,6 +155,39 @@ def validate_ga(algo: DictConfig) -> None:
     )
 
 
+def validate_ppo(algo: DictConfig) -> None:
+    """One clear sentence per bad PPO value, naming the field and the allowed range."""
+    from spn_torchrl.surrogate import SURROGATES
+
+    _require(algo.policy in ("dpn", "spn"), f"algo.policy must be 'dpn' or 'spn', got {algo.policy!r}")
+    _require(algo.frames_per_batch >= 1, f"algo.frames_per_batch must be >= 1, got {algo.frames_per_batch}")
+    _require(
+        algo.total_env_steps >= algo.frames_per_batch and algo.total_env_steps % algo.frames_per_batch == 0,
+        f"algo.total_env_steps must be a positive multiple of algo.frames_per_batch={algo.frames_per_batch}, "
+        f"got {algo.total_env_steps}",
+    )
+    _require(algo.epochs >= 1, f"algo.epochs must be >= 1, got {algo.epochs}")
+    _require(
+        1 <= algo.minibatch_size <= algo.frames_per_batch and algo.frames_per_batch % algo.minibatch_size == 0,
+        f"algo.minibatch_size must be in [1, algo.frames_per_batch={algo.frames_per_batch}] and divide it, "
+        f"got {algo.minibatch_size}",
+    )
+    _require(algo.lr_policy > 0, f"algo.lr_policy must be > 0, got {algo.lr_policy}")
+    _require(algo.lr_value > 0, f"algo.lr_value must be > 0, got {algo.lr_value}")
+    _require(0 <= algo.gamma <= 1, f"algo.gamma must be in [0, 1], got {algo.gamma}")
+    _require(0 <= algo.gae_lambda <= 1, f"algo.gae_lambda must be in [0, 1], got {algo.gae_lambda}")
+    _require(algo.clip_epsilon > 0, f"algo.clip_epsilon must be > 0, got {algo.clip_epsilon}")
+    _require(algo.hidden >= 1, f"algo.hidden must be >= 1, got {algo.hidden}")
+    _require(algo.eval_interval >= 1, f"algo.eval_interval must be >= 1, got {algo.eval_interval}")
+    _require(algo.eval_episodes >= 1, f"algo.eval_episodes must be >= 1, got {algo.eval_episodes}")
+    _require(algo.surrogate in SURROGATES, f"algo.surrogate must be one of {list(SURROGATES)}, got {algo.surrogate!r}")
+    _require(algo.surrogate_alpha > 0, f"algo.surrogate_alpha must be > 0, got {algo.surrogate_alpha}")
+    _require(algo.score_init_std >= 0, f"algo.score_init_std must be >= 0, got {algo.score_init_std}")
+    _require(0 < algo.score_threshold < 1, f"algo.score_threshold must be in (0, 1), got {algo.score_threshold}")
+    _require(algo.time_steps >= 1, f"algo.time_steps must be >= 1, got {algo.time_steps}")
+    _require(0 <= algo.decay <= 1, f"algo.decay must be in [0, 1], got {algo.decay}")
+
+
 def validate(cfg: DictConfig) -> None:
     """Check a whole run config before anything is built."""
     kind = cfg.algo.get("kind")
@@ -151,4 +217,4 @@ def validate(cfg: DictConfig) -> None:
     )
 
 
-ALGO_VALIDATORS: dict[str, Any] = {"ga": validate_ga}
+ALGO_VALIDATORS: dict[str, Any] = {"ga": validate_ga, "ppo": validate_ppo}

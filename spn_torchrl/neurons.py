@@ -2,19 +2,34 @@
 
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
+
+SpikeFn = Callable[[torch.Tensor, float], torch.Tensor]
 
 DECAY = 0.75
 V_TH = 0.5
 TIME_STEPS = 4
 
 
+def heaviside(v: torch.Tensor, v_th: float) -> torch.Tensor:
+    """Spikes of potentials ``v``: ``v > v_th`` (strict), as floats."""
+    return (v > v_th).to(v.dtype)
+
+
 def lif_step(
-    v: torch.Tensor, spikes: torch.Tensor, current: torch.Tensor, decay: float = DECAY, v_th: float = V_TH
+    v: torch.Tensor,
+    spikes: torch.Tensor,
+    current: torch.Tensor,
+    decay: float = DECAY,
+    v_th: float = V_TH,
+    spike_fn: SpikeFn = heaviside,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One LIF step: the previous spike resets its neuron now; a spike is ``v > v_th`` (strict)."""
+    """One LIF step: the previous spike resets its neuron now; a spike is ``spike_fn(v, v_th)``
+    (``v > v_th`` strict by default; a surrogate-gradient function gives the same values)."""
     v = decay * v * (1.0 - spikes) + current
-    return v, (v > v_th).to(v.dtype)
+    return v, spike_fn(v, v_th)
 
 
 def li_step(v: torch.Tensor, current: torch.Tensor, decay: float = DECAY) -> torch.Tensor:
@@ -29,12 +44,14 @@ def spn_dynamics(
     time_steps: int = TIME_STEPS,
     decay: float = DECAY,
     v_th: float = V_TH,
+    spike_fn: SpikeFn = heaviside,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Run the SPN for one environment step of a population.
 
     w1 [P, h, n] and w2 [P, m, h] are the effective (masked) weights, obs [P, n] the observations held
     constant for ``time_steps`` steps from a zero state. Returns the max over time of the output
-    potentials [P, m] and the hidden spike count per individual [P].
+    potentials [P, m] and the hidden spike count per individual [P]. ``spike_fn`` lets a gradient through
+    the spikes (see :mod:`spn_torchrl.surrogate`); its forward values must be the Heaviside step's.
     """
     current = torch.bmm(w1, obs.unsqueeze(-1)).squeeze(-1)
     v1 = torch.zeros_like(current)
@@ -43,7 +60,7 @@ def spn_dynamics(
     out = None
     spike_sum = torch.zeros_like(current)
     for _ in range(time_steps):
-        v1, s1 = lif_step(v1, s1, current, decay, v_th)
+        v1, s1 = lif_step(v1, s1, current, decay, v_th, spike_fn)
         spike_sum = spike_sum + s1
         v2 = li_step(v2, torch.bmm(w2, s1.unsqueeze(-1)).squeeze(-1), decay)
         out = v2 if out is None else torch.maximum(out, v2)

@@ -129,3 +129,46 @@ def build_spn(
     if genomes is not None:
         spn.set_genomes(genomes.reshape(-1, spn.genome_size))
     return spn
+
+
+class TrainableSPN(nn.Module):
+    """One SPN with trainable connection scores, for gradient training (Connections-PPO).
+
+    Same fixed weights, mask rule and dynamics as :class:`PopulationSPN`; the mask passes gradients to the
+    scores straight-through (forward: the hard mask; backward: d sigmoid(score)), the spikes through
+    ``spike_fn`` (a surrogate derivative). Maps observations [..., n] to the output [..., m]: the
+    clipped max potential for continuous tasks (the Gaussian mean), the raw max potential for discrete
+    ones (the logits; argmax is PopulationSPN's action).
+    """
+
+    def __init__(self, spn: PopulationSPN, scores: torch.Tensor, spike_fn: neurons.SpikeFn) -> None:
+        super().__init__()
+        if spn.genome_kind != "connections":
+            raise ValueError("TrainableSPN trains connection scores: build it from a 'connections' PopulationSPN")
+        self.spn = spn
+        self.scores = nn.Parameter(scores.detach().clone().float().reshape(spn.genome_size))
+        self.spike_fn = spike_fn
+
+    def masks(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Straight-through masks [h, n] and [m, h]: values of the hard mask, gradient of the sigmoid."""
+        g1, g2 = self.spn._split(self.scores[None])
+        out = []
+        for g in (g1[0], g2[0]):
+            soft = torch.sigmoid(g)
+            hard = (soft >= self.spn.score_threshold).to(soft.dtype)
+            out.append(hard + (soft - soft.detach()))  # exactly the hard mask, d sigmoid backward
+        return out[0], out[1]
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        x1, x2 = self.masks()
+        w1, w2 = self.spn.w1 * x1, self.spn.w2 * x2
+        batch = observation.shape[:-1]
+        obs = observation.reshape(-1, observation.shape[-1]).to(w1.dtype)
+        b = obs.shape[0]
+        out, _ = neurons.spn_dynamics(
+            w1.expand(b, *w1.shape), w2.expand(b, *w2.shape), obs,
+            self.spn.time_steps, self.spn.decay, self.spn.v_th, self.spike_fn,
+        )
+        if not self.spn.discrete:
+            out = torch.clamp(out, self.spn.action_low, self.spn.action_high)
+        return out.reshape(*batch, out.shape[-1])

@@ -42,4 +42,8 @@ def run(cfg: DictConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
         from spn_torchrl.evolve import evolve
 
         return evolve(cfg, out, run_name(cfg))
+    if kind == "ppo":
+        from spn_torchrl.ppo import train_ppo
+
+        return train_ppo(cfg, out, run_name(cfg))
     raise AssertionError(f"validate() let algo.kind={kind!r} through")

@@ -1,0 +1,332 @@
+"""A PPO run for the DPN baseline and for Connections-PPO, from TorchRL's parts (Collector, GAE, ClipPPOLoss).
+
+Follows the paper's appendix (Spinning Up's PPO): one env, ``frames_per_batch`` steps per iteration from a
+reset (Spinning Up resets at every epoch end, which also makes a resumed run exact), advantages computed once
+per iteration, ``epochs`` passes over minibatches, one Adam with a learning rate per network.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, ReplayBuffer, SamplerWithoutReplacement
+from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
+from torchrl.modules import IndependentNormal, ProbabilisticActor, ValueOperator
+from torchrl.objectives import ClipPPOLoss
+from torchrl.objectives.value import GAE
+
+from spn_torchrl import checkpoint
+from spn_torchrl.envs import TaskSpec, make_population_env, task_spec
+from spn_torchrl.errors import ConfigError
+from spn_torchrl.evaluate import episode_seed
+from spn_torchrl.policies import PopulationSPN, TrainableSPN, init_fixed_weights
+from spn_torchrl.records import Progress, make_logger
+from spn_torchrl.surrogate import surrogate_spike
+
+log = logging.getLogger("spn_torchrl")
+
+FORMAT = "spn_torchrl.ppo/1"
+COUNTERS = ("policy_forward", "policy_backward", "value_forward", "value_backward", "eval_policy_forward")
+
+
+def dpn(n_obs: int, n_act: int, hidden: int, discrete: bool) -> nn.Module:
+    """The paper's DPN: n -> hidden ReLU -> m Tanh (the Gaussian mean); logits (no Tanh) for discrete tasks."""
+    layers: list[nn.Module] = [nn.Linear(n_obs, hidden), nn.ReLU(), nn.Linear(hidden, n_act)]
+    return nn.Sequential(*layers) if discrete else nn.Sequential(*layers, nn.Tanh())
+
+
+def spn_net(cfg: DictConfig, spec: TaskSpec) -> TrainableSPN:
+    """The GA's SPN for this seed (same generator, same fixed weights) with trainable scores drawn after them."""
+    algo = cfg.algo
+    generator = torch.Generator().manual_seed(cfg.seed)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
+    spn = PopulationSPN(
+        w1,
+        w2,
+        genome_kind="connections",
+        score_threshold=algo.score_threshold,
+        discrete=spec.discrete,
+        action_low=spec.action_low,
+        action_high=spec.action_high,
+        time_steps=algo.time_steps,
+        decay=algo.decay,
+        v_th=algo.v_threshold,
+    )
+    scores = algo.score_init_std * torch.randn(spn.genome_size, generator=generator)
+    return TrainableSPN(spn, scores, surrogate_spike(algo.surrogate, algo.surrogate_alpha))
+
+
+def make_actor(cfg: DictConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticActor:
+    """The stochastic policy: Gaussian (state-independent log-std) around the net's output, or Categorical."""
+    algo = cfg.algo
+    net = spn_net(cfg, spec) if algo.policy == "spn" else dpn(spec.n_obs, spec.n_act, algo.hidden, spec.discrete)
+    action_spec = env.full_action_spec_unbatched
+    if spec.discrete:
+        module = TensorDictModule(net, in_keys=["observation"], out_keys=["logits"])
+        return ProbabilisticActor(
+            module,
+            in_keys=["logits"],
+            spec=action_spec,
+            distribution_class=torch.distributions.Categorical,
+            return_log_prob=True,
+        )
+    module = TensorDictSequential(
+        TensorDictModule(net, in_keys=["observation"], out_keys=["loc_net"]),
+        TensorDictModule(
+            AddStateIndependentNormalScale(spec.n_act, scale_lb=1e-6, init_value=algo.log_std_init),
+            in_keys=["loc_net"],
+            out_keys=["loc", "scale"],
+        ),
+    )
+    return ProbabilisticActor(
+        module, in_keys=["loc", "scale"], spec=action_spec, distribution_class=IndependentNormal, return_log_prob=True
+    )
+
+
+def make_critic(spec: TaskSpec, hidden: int) -> ValueOperator:
+    """The paper's value net: n -> hidden ReLU -> 1."""
+    net = nn.Sequential(nn.Linear(spec.n_obs, hidden), nn.ReLU(), nn.Linear(hidden, 1))
+    return ValueOperator(net, in_keys=["observation"])
+
+
+def evaluate_policy(
+    actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int
+) -> tuple[torch.Tensor, int]:
+    """Undiscounted return of the first episode of each env copy, with the deterministic policy (the mean),
+    and the number of policy samples the rollout took."""
+    env.set_seed(seed)
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        td = env.rollout(max_steps, actor, break_when_any_done=False)
+    done = td["next", "done"].squeeze(-1)  # [E, T]
+    if not bool(done.any(-1).all()):
+        raise RuntimeError(f"an evaluation episode did not end within {max_steps} steps")
+    first = done.float().argmax(-1)
+    returns = td["next", "episode_reward"].squeeze(-1)
+    return returns.gather(-1, first[:, None]).squeeze(-1), done.numel()
+
+
+@dataclass
+class Counts:
+    """Cumulative network passes, in samples (what the energy model needs)."""
+
+    values: dict[str, int] = field(default_factory=lambda: dict.fromkeys(COUNTERS, 0))
+
+    def add(self, **kwargs: int) -> None:
+        for key, value in kwargs.items():
+            self.values[key] += int(value)
+
+
+def run_meta(cfg: DictConfig, spec: TaskSpec) -> dict[str, Any]:
+    """What a checkpoint must match to be resumed by this config."""
+    algo = cfg.algo
+    return {
+        "format": FORMAT,
+        "env_id": spec.env_id,
+        "policy": algo.policy,
+        "n_obs": spec.n_obs,
+        "n_act": spec.n_act,
+        "hidden": algo.hidden,
+        "frames_per_batch": algo.frames_per_batch,
+        "seed": cfg.seed,
+    }
+
+
+def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
+    """Run (or resume) PPO; returns the last iteration's metrics."""
+    algo = cfg.algo
+    spec = task_spec(cfg.env.id)
+    meta = run_meta(cfg, spec)
+    ckpt_path = run_dir / checkpoint.CHECKPOINT_NAME
+    if ckpt_path.exists() and not cfg.resume:
+        raise ConfigError(f"{run_dir} already holds a run: pass resume=true to continue it, or use a new run directory")
+    iterations = algo.total_env_steps // algo.frames_per_batch
+    state = checkpoint.load(ckpt_path, expected=meta) if cfg.resume and ckpt_path.exists() else None
+    if cfg.resume and state is None:
+        log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
+
+    torch.manual_seed(cfg.seed)
+    env = make_population_env(spec.env_id, 1, backend=cfg.env.backend)
+    eval_env = make_population_env(spec.env_id, algo.eval_episodes, backend=cfg.env.backend)
+    actor = make_actor(cfg, spec, env)
+    critic = make_critic(spec, algo.hidden)
+    loss_module = ClipPPOLoss(
+        actor,
+        critic,
+        clip_epsilon=algo.clip_epsilon,
+        entropy_bonus=False,
+        critic_coeff=1.0,
+        loss_critic_type="l2",
+        normalize_advantage=algo.normalize_advantage,
+        functional=False,
+    )
+    gae = GAE(gamma=algo.gamma, lmbda=algo.gae_lambda, value_network=critic, average_gae=False)
+    optim = torch.optim.Adam(
+        [{"params": actor.parameters(), "lr": algo.lr_policy}, {"params": critic.parameters(), "lr": algo.lr_value}]
+    )
+    counts = Counts()
+    start, wall, wandb_id = 0, 0.0, None
+    if state is not None:
+        actor.load_state_dict(state["actor"])
+        critic.load_state_dict(state["critic"])
+        optim.load_state_dict(state["optim"])
+        counts.values.update(state["counts"])
+        start, wall, run_name, wandb_id = state["iteration"], state["wall_time_s"], state["run_name"], state["wandb_id"]
+        torch.set_rng_state(state["torch_rng"])
+        log.info("resuming %s after iteration %d", run_dir, start)
+    if start >= iterations:
+        env.close()
+        eval_env.close()
+        log.info("%s already ran its %d iterations", run_dir, iterations)
+        return {}
+
+    next_iteration = [start + 1]
+
+    def seed_iteration() -> None:
+        # every iteration starts from a reset seeded by (run seed, iteration): a resumed run replays it
+        env.set_seed(episode_seed(cfg.seed, next_iteration[0], 0))
+
+    collector = Collector(
+        env,
+        actor,
+        frames_per_batch=algo.frames_per_batch,
+        total_frames=(iterations - start) * algo.frames_per_batch,
+        reset_at_each_iter=True,
+        pre_collect_hook=seed_iteration,
+        auto_register_policy_transforms=False,
+    )
+    buffer = ReplayBuffer(
+        storage=LazyTensorStorage(algo.frames_per_batch),
+        sampler=SamplerWithoutReplacement(),
+        batch_size=algo.minibatch_size,
+    )
+    progress = Progress(run_dir / "progress.csv", keep_rows=start)
+    logger = make_logger(cfg, run_dir, run_name, wandb_id)
+    wandb_id = getattr(getattr(logger, "experiment", None), "id", wandb_id) if cfg.logger.backend == "wandb" else None
+    row: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    try:
+        for iteration, data in enumerate(collector, start=start + 1):
+            frames = data.numel()
+            counts.add(policy_forward=frames)
+            data = data.reshape(-1)
+            with torch.no_grad():
+                data = gae(data)
+            counts.add(value_forward=2 * frames)  # values of obs and next obs
+            buffer.empty()
+            buffer.extend(data)
+            sums: dict[str, float] = {"loss_objective": 0.0, "loss_critic": 0.0, "kl_approx": 0.0, "clip_fraction": 0.0}
+            updates = 0
+            for _ in range(algo.epochs):
+                for _ in range(frames // algo.minibatch_size):
+                    batch = buffer.sample()
+                    loss = loss_module(batch)
+                    total = loss["loss_objective"] + loss["loss_critic"]
+                    optim.zero_grad()
+                    total.backward()
+                    optim.step()
+                    n = batch.numel()
+                    counts.add(policy_forward=n, policy_backward=n, value_forward=n, value_backward=n)
+                    for key in sums:
+                        if key in loss.keys():
+                            sums[key] += float(loss[key].detach())
+                    updates += 1
+            collector.update_policy_weights_()
+            done = data["next", "done"].squeeze(-1)
+            finished = data["next", "episode_reward"].squeeze(-1)[done]
+            eval_return = math.nan
+            if iteration % algo.eval_interval == 0 or iteration == iterations:
+                returns, samples = evaluate_policy(
+                    actor, eval_env, spec.max_episode_steps, episode_seed(cfg.seed, iteration, 1)
+                )
+                counts.add(eval_policy_forward=samples)
+                eval_return = float(returns.mean())
+            t1 = time.perf_counter()
+            seconds, t0 = t1 - t0, t1
+            wall += seconds
+            row = {
+                "iteration": iteration,
+                "total_env_steps": iteration * algo.frames_per_batch,
+                "eval_return": eval_return,
+                "train_return": float(finished.mean()) if finished.numel() else math.nan,
+                "train_episodes": int(finished.numel()),
+                **{key: value / updates for key, value in sums.items()},
+                "log_std": float(_log_std(actor)) if not spec.discrete else math.nan,
+                "mask_density": _mask_density(actor),
+                "wall_time_s": round(wall, 3),
+                "steps_per_s": round(frames / seconds, 1),
+                **counts.values,
+            }
+            progress.append(row)
+            if logger is not None:
+                logger.log_metrics(
+                    {f"{'eval' if key == 'eval_return' else 'train'}/{key}": value for key, value in row.items()},
+                    step=iteration,
+                )
+            checkpoint.save(
+                {
+                    "meta": meta,
+                    "config": OmegaConf.to_yaml(cfg, resolve=True),
+                    "run_name": run_name,
+                    "wandb_id": wandb_id,
+                    "iteration": iteration,
+                    "actor": actor.state_dict(),
+                    "critic": critic.state_dict(),
+                    "optim": optim.state_dict(),
+                    "torch_rng": torch.get_rng_state(),
+                    "counts": dict(counts.values),
+                    "wall_time_s": wall,
+                },
+                run_dir,
+            )
+            next_iteration[0] = iteration + 1
+            log.info(
+                "iter %d/%d  steps %d  eval %.2f  train %.2f  loss_pi %.4f  loss_v %.4f  %.0f steps/s",
+                iteration, iterations, row["total_env_steps"], eval_return, row["train_return"],
+                row["loss_objective"], row["loss_critic"], row["steps_per_s"],
+            )
+    finally:
+        collector.shutdown()
+        eval_env.close()
+        if logger is not None:
+            logger.close()
+    return row
+
+
+def _log_std(actor: ProbabilisticActor) -> torch.Tensor:
+    """Mean log-std of the Gaussian policy."""
+    for module in actor.modules():
+        if isinstance(module, AddStateIndependentNormalScale):
+            return module.state_independent_scale.detach().mean()
+    return torch.tensor(math.nan)
+
+
+def _mask_density(actor: ProbabilisticActor) -> float:
+    """Fraction of existing synapses of a trainable SPN (NaN for the DPN)."""
+    for module in actor.modules():
+        if isinstance(module, TrainableSPN):
+            x1, x2 = module.masks()
+            return float((x1.sum() + x2.sum()) / (x1.numel() + x2.numel()))
+    return math.nan
+
+
+def load_actor(run_dir: Path, cfg: DictConfig) -> tuple[ProbabilisticActor, TaskSpec]:
+    """The trained stochastic actor of a PPO run's checkpoint (use the DETERMINISTIC exploration type to act)."""
+    spec = task_spec(cfg.env.id)
+    state = checkpoint.load(run_dir, expected=run_meta(cfg, spec))
+    env = make_population_env(spec.env_id, 1, backend=cfg.env.backend)
+    try:
+        actor = make_actor(cfg, spec, env)
+    finally:
+        env.close()
+    actor.load_state_dict(state["actor"])
+    return actor, spec
