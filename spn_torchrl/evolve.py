@@ -14,29 +14,12 @@ from spn_torchrl import checkpoint, ga
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluate import episode_seed, make_evaluator
-from spn_torchrl.policies import PopulationSPN, init_fixed_weights
-from spn_torchrl.records import Progress, make_logger
+from spn_torchrl.policies import init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.records import Progress, logger_run_id, make_logger
 
 log = logging.getLogger("spn_torchrl")
 
 FORMAT = "spn_torchrl.ga/1"
-
-
-def spn_from_config(cfg: DictConfig, spec, w1: torch.Tensor, w2: torch.Tensor) -> PopulationSPN:
-    """The run's SPN from its config, task spec and fixed weights."""
-    algo = cfg.algo
-    return PopulationSPN(
-        w1,
-        w2,
-        genome_kind=algo.genome,
-        score_threshold=algo.score_threshold,
-        discrete=spec.discrete,
-        action_low=spec.action_low,
-        action_high=spec.action_high,
-        time_steps=algo.time_steps,
-        decay=algo.decay,
-        v_th=algo.v_threshold,
-    )
 
 
 def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
@@ -80,7 +63,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         population = ga.initial_population(algo.population, dim, algo.sigma, generator, center)
         start, elites, total_steps, wall, wandb_id = 0, [], 0, 0.0, None
 
-    spn = spn_from_config(cfg, spec, w1, w2)
+    spn = spn_from_config(cfg.algo, spec, w1, w2)
     progress = Progress(run_dir / "progress.csv", keep_rows=start)
     evaluator = make_evaluator(cfg, spec, spn)
     logger = None
@@ -88,8 +71,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     row: dict[str, Any] = {}
     try:
         logger = make_logger(cfg, run_dir, run_name, wandb_id)
-        if cfg.logger.backend == "wandb":
-            wandb_id = logger.experiment.id
+        wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
             t0 = time.perf_counter()
             fitness_eps = evaluator(population, episode_seed(cfg.seed, generation, 0))
@@ -119,7 +101,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "total_env_steps": total_steps,
                 "wall_time_s": round(wall, 3),
                 "steps_per_s": round(steps / seconds, 1),
-                "mask_density": float((mask1.sum() + mask2.sum()) / (mask1.numel() + mask2.numel())),
+                "mask_density": mask_density(mask1, mask2),
                 "spike_rate": float(elite_spikes / (elite_steps * algo.hidden * algo.time_steps)),
                 "synapses_l1": int(mask1.sum()),
                 "synapses_l2": int(mask2.sum()),

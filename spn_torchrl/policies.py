@@ -121,6 +121,27 @@ def spn_module(spn: PopulationSPN) -> TensorDictModule:
     return TensorDictModule(spn, in_keys=["observation"], out_keys=["action", "hidden_spikes"])
 
 
+def spn_from_config(algo, spec, w1: torch.Tensor, w2: torch.Tensor) -> PopulationSPN:
+    """The SPN that ``algo`` (an algo config) describes for a task spec and its fixed weights."""
+    return PopulationSPN(
+        w1,
+        w2,
+        genome_kind=algo.get("genome", "connections"),
+        score_threshold=algo.score_threshold,
+        discrete=spec.discrete,
+        action_low=spec.action_low,
+        action_high=spec.action_high,
+        time_steps=algo.time_steps,
+        decay=algo.decay,
+        v_th=algo.v_threshold,
+    )
+
+
+def mask_density(x1: torch.Tensor, x2: torch.Tensor) -> float:
+    """Fraction of the synapses of both layers that exist."""
+    return float((x1.sum() + x2.sum()) / (x1.numel() + x2.numel()))
+
+
 def build_spn(
     w1: torch.Tensor, w2: torch.Tensor, genomes: torch.Tensor | None = None, **kwargs
 ) -> PopulationSPN:

@@ -29,8 +29,8 @@ from spn_torchrl import checkpoint
 from spn_torchrl.envs import TaskSpec, make_population_env, task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluate import episode_seed
-from spn_torchrl.policies import PopulationSPN, TrainableSPN, init_fixed_weights
-from spn_torchrl.records import Progress, make_logger
+from spn_torchrl.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.records import Progress, logger_run_id, make_logger
 from spn_torchrl.surrogate import surrogate_spike
 
 log = logging.getLogger("spn_torchrl")
@@ -50,18 +50,7 @@ def spn_net(cfg: DictConfig, spec: TaskSpec) -> TrainableSPN:
     algo = cfg.algo
     generator = torch.Generator().manual_seed(cfg.seed)
     w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
-    spn = PopulationSPN(
-        w1,
-        w2,
-        genome_kind="connections",
-        score_threshold=algo.score_threshold,
-        discrete=spec.discrete,
-        action_low=spec.action_low,
-        action_high=spec.action_high,
-        time_steps=algo.time_steps,
-        decay=algo.decay,
-        v_th=algo.v_threshold,
-    )
+    spn = spn_from_config(algo, spec, w1, w2)
     scores = algo.score_init_std * torch.randn(spn.genome_size, generator=generator)
     return TrainableSPN(spn, scores, surrogate_spike(algo.surrogate, algo.surrogate_alpha))
 
@@ -210,11 +199,12 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         batch_size=algo.minibatch_size,
     )
     progress = Progress(run_dir / "progress.csv", keep_rows=start)
-    logger = make_logger(cfg, run_dir, run_name, wandb_id)
-    wandb_id = getattr(getattr(logger, "experiment", None), "id", wandb_id) if cfg.logger.backend == "wandb" else None
+    logger = None
     row: dict[str, Any] = {}
     t0 = time.perf_counter()
     try:
+        logger = make_logger(cfg, run_dir, run_name, wandb_id)
+        wandb_id = logger_run_id(logger)
         for iteration, data in enumerate(collector, start=start + 1):
             frames = data.numel()
             counts.add(policy_forward=frames)
@@ -314,8 +304,7 @@ def _mask_density(actor: ProbabilisticActor) -> float:
     """Fraction of existing synapses of a trainable SPN (NaN for the DPN)."""
     for module in actor.modules():
         if isinstance(module, TrainableSPN):
-            x1, x2 = module.masks()
-            return float((x1.sum() + x2.sum()) / (x1.numel() + x2.numel()))
+            return mask_density(*module.masks())
     return math.nan
 
 

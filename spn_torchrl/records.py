@@ -100,6 +100,13 @@ def wandb_mode(requested: str) -> str:
     return "offline"
 
 
+def logger_run_id(logger) -> str | None:
+    """The W&B run id of a logger (to resume the same W&B run), None for other loggers."""
+    from torchrl.record.loggers import WandbLogger
+
+    return logger.experiment.id if isinstance(logger, WandbLogger) else None
+
+
 def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | None = None):
     """A torchrl logger for the run (``None`` for ``logger.backend=none``)."""
     backend = cfg.logger.backend
