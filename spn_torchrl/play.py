@@ -63,10 +63,19 @@ def hidden_spike_train(elite: Elite, observation: torch.Tensor) -> torch.Tensor:
     return torch.stack(spikes)
 
 
+def make_render_env(env_id: str) -> gym.Env:
+    """The task rendering RGB frames, through the model's tracking camera ("track") where it has one, so that
+    a walker stays in view (MuJoCo's default free camera does not follow it)."""
+    try:
+        return gym.make(env_id, render_mode="rgb_array", camera_name="track")
+    except (TypeError, ValueError):  # no camera_name argument (not MuJoCo) or no such camera
+        return gym.make(env_id, render_mode="rgb_array")
+
+
 def run_episode(elite: Elite, seed: int, render: bool = False) -> Trace:
     """One episode on a plain Gymnasium env, recording observations, actions, hidden spikes (and frames)."""
     elite.spn.set_genomes(elite.genome[None])
-    env = gym.make(elite.spec.env_id, render_mode="rgb_array" if render else None)
+    env = make_render_env(elite.spec.env_id) if render else gym.make(elite.spec.env_id)
     observations, actions, spikes, frames = [], [], [], []
     total = 0.0
     try:
