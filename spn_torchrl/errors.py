@@ -11,3 +11,19 @@ class ConfigError(SpnError, ValueError):
 
 class CheckpointError(SpnError):
     """A checkpoint is corrupt or belongs to another task or architecture."""
+
+
+class DependencyError(SpnError, ImportError):
+    """An optional dependency (an extra of the package) or a system library is missing."""
+
+
+def require(module: str, extra: str):
+    """Import an optional module, or raise :class:`DependencyError` naming the extra that provides it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise DependencyError(
+            f"{module} is not installed: install the optional extra with pip install -e \".[{extra}]\""
+        ) from None

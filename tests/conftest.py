@@ -1,3 +1,7 @@
+"""How tests run train.py (in a subprocess, as a user would), and tiny real runs shared by several tests."""
+
+from __future__ import annotations
+
 import os
 import subprocess
 import sys
@@ -14,9 +18,27 @@ def train_command(run_dir: Path, *overrides: str) -> list[str]:
 
 
 def run_train(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.CompletedProcess:
-    """Run train.py in a subprocess, as a user would."""
+    """Run train.py into ``run_dir``; with ``check``, fail the test with its output if it fails."""
     env = {**os.environ, "WANDB_MODE": "offline", "WANDB_SILENT": "true"}
-    proc = subprocess.run(train_command(run_dir, *overrides), cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(train_command(run_dir, *overrides), cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     if check and proc.returncode != 0:
         pytest.fail(f"train.py failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc
+
+
+@pytest.fixture(scope="session")
+def cartpole_run(tmp_path_factory) -> Path:
+    """CartPole, 2 generations of 10 (2 elite candidates x 5 episodes)."""
+    run_dir = tmp_path_factory.mktemp("runs") / "cartpole"
+    run_train(run_dir, "env=cartpole", *TINY)
+    return run_dir
+
+
+@pytest.fixture(scope="session")
+def halfcheetah_run(tmp_path_factory) -> Path:
+    """HalfCheetah, 1 generation of 2 (the smallest real run: 3 episodes of 1000 steps)."""
+    run_dir = tmp_path_factory.mktemp("runs") / "halfcheetah"
+    run_train(
+        run_dir, "env=halfcheetah", "algo.generations=1", "algo.population=2", "algo.elite_candidates=1", "algo.elite_episodes=1"
+    )
+    return run_dir

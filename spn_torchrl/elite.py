@@ -1,0 +1,63 @@
+"""Load a finished (or running) GA run's elite: its config, task, fixed weights and SPN, from checkpoint.pt."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+from spn_torchrl import checkpoint
+from spn_torchrl.envs import TaskSpec, task_spec
+from spn_torchrl.errors import CheckpointError, SpnError
+from spn_torchrl.evolve import FORMAT, spn_from_config
+from spn_torchrl.policies import PopulationSPN
+
+
+@dataclass
+class Elite:
+    """One generation's elite of a run, with the SPN (population of one) already set to it."""
+
+    run_dir: Path
+    cfg: DictConfig
+    spec: TaskSpec
+    spn: PopulationSPN
+    genome: torch.Tensor
+    generation: int
+    generations: int
+    elites: torch.Tensor
+    state: dict
+
+    @property
+    def masks(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Connection masks of the elite, [h, n] and [m, h]."""
+        x1, x2 = self.spn.masks(self.genome[None])
+        return x1[0], x2[0]
+
+    @property
+    def weights(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """Effective (masked) weights of the elite, [h, n] and [m, h]."""
+        w1, w2 = self.spn.effective_weights(self.genome[None])
+        return w1[0], w2[0]
+
+
+def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
+    """The elite of ``generation`` (1-based; default the last saved) of the GA run in ``run_dir``."""
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        raise SpnError(f"run directory {run_dir} does not exist")
+    state = checkpoint.load(run_dir)
+    if state["meta"].get("format") != FORMAT:
+        raise CheckpointError(f"{run_dir} holds a {state['meta'].get('format')!r} checkpoint, not a GA run ({FORMAT})")
+    cfg = OmegaConf.create(state["config"])
+    elites = state["elites"]
+    count = elites.shape[0]
+    generation = count if generation is None else generation
+    if not 1 <= generation <= count:
+        raise SpnError(f"--generation must be in [1, {count}] for {run_dir}, got {generation}")
+    spec = task_spec(state["meta"]["env_id"])
+    spn = spn_from_config(cfg, spec, state["w1"], state["w2"])
+    genome = elites[generation - 1]
+    spn.set_genomes(genome[None])
+    return Elite(run_dir, cfg, spec, spn, genome, generation, count, elites, state)
