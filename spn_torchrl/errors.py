@@ -11,3 +11,7 @@ class ConfigError(SpnError, ValueError):
 
 class CheckpointError(SpnError):
     """A checkpoint is corrupt or belongs to another task or architecture."""
+
+
+class EvaluatorError(SpnError):
+    """A remote evaluator could not start, lost a worker, or did not answer in time."""
