@@ -15,7 +15,7 @@ from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluate import episode_seed, make_evaluator
 from spn_torchrl.policies import PopulationSPN, init_fixed_weights
-from spn_torchrl.records import Progress, make_logger
+from spn_torchrl.records import Progress, close_logger, make_logger
 
 log = logging.getLogger("spn_torchrl")
 
@@ -86,8 +86,10 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     logger = None
     k, episodes = algo.elite_candidates, algo.elite_episodes
     row: dict[str, Any] = {}
+    failed = True
     try:
         logger = make_logger(cfg, run_dir, run_name, wandb_id)
+        log.info("run %s in %s", run_name, run_dir)
         if cfg.logger.backend == "wandb":
             wandb_id = logger.experiment.id
         for generation in range(start + 1, algo.generations + 1):
@@ -149,8 +151,10 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
                 total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
             )
+        failed = False
     finally:
-        evaluator.close()
-        if logger is not None:
-            logger.close()
+        try:
+            evaluator.close()
+        finally:
+            close_logger(logger, failed)
     return row
