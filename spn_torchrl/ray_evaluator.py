@@ -11,6 +11,7 @@ Only this module imports Ray, and only :func:`spn_torchrl.evaluate.ray_evaluator
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import time
@@ -86,8 +87,9 @@ class RayEvaluator:
         self.spn = spn
         self.call_timeout_s = call_timeout_s
         self.owns_ray = owns_ray
-        self.bytes_sent = 0
-        self.bytes_received = 0
+        self.bytes_setup = 0  # fixed weights sent once at start
+        self.bytes_sent = 0  # genomes and seeds, every call
+        self.bytes_received = 0  # returns, steps, spikes, every call
 
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
         count = genomes.shape[0]
@@ -166,12 +168,16 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
         import spn_torchrl
 
         options["runtime_env"] = {"py_modules": [spn_torchrl]}
-    spn_ref = ray.put(spn)  # the fixed weights, sent once to all actors (and kept for restarts)
+    # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts;
+    # a copy without the effective weights of an earlier set_genomes, which would only add bytes
+    bare = copy.copy(spn)
+    bare.w1_eff = bare.w2_eff = None
     actors = [
-        ShardActor.options(**options).remote(spn_ref, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps)
+        ShardActor.options(**options).remote(bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps)
         for size in capacities
     ]
     evaluator = RayEvaluator(actors, population, spn, ev.call_timeout_s, owns_ray)
+    evaluator.bytes_setup = len(actors) * (spn.w1.nbytes + spn.w2.nbytes)
     try:
         started, waiting = ray.wait([a.ready.remote() for a in actors], num_returns=len(actors), timeout=ev.start_timeout_s)
         if waiting:
