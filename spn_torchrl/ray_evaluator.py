@@ -15,6 +15,7 @@ import copy
 import logging
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import ray
@@ -140,11 +141,13 @@ def connect(evaluator: DictConfig) -> bool:
     """Join the cluster at ``evaluator.address`` or start a local one; True when this call started Ray."""
     if ray.is_initialized():
         return False
+    # ship_code: Ray uploads this package for the job's workers (only possible when this process joins)
+    runtime_env = {"py_modules": [str(Path(__file__).resolve().parent)]} if evaluator.ship_code else None
     try:
         if evaluator.address is None:
-            ray.init(num_cpus=evaluator.num_cpus, include_dashboard=False)
+            ray.init(num_cpus=evaluator.num_cpus, include_dashboard=False, runtime_env=runtime_env)
         else:
-            ray.init(address=evaluator.address)
+            ray.init(address=evaluator.address, runtime_env=runtime_env)
     except ConnectionError as err:
         raise EvaluatorError(f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}") from None
     return True
@@ -164,10 +167,6 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
     population = cfg.algo.population
     capacities = [stop - start for start, stop in shard_bounds(population, ev.num_actors)]
     options = {"num_cpus": ev.num_cpus_per_actor, "max_restarts": ev.max_restarts, "max_task_retries": ev.max_restarts}
-    if ev.ship_code:
-        import spn_torchrl
-
-        options["runtime_env"] = {"py_modules": [spn_torchrl]}
     # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts;
     # a copy without the effective weights of an earlier set_genomes, which would only add bytes
     bare = copy.copy(spn)

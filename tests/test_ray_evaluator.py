@@ -166,3 +166,17 @@ def test_bad_ray_settings_are_rejected():
         make_cfg("algo.population=4", "evaluator.num_actors=5")
     with pytest.raises(ConfigError, match="evaluator.max_restarts"):
         make_cfg("evaluator.max_restarts=-1")
+
+
+def test_train_with_ray_logs_what_the_local_evaluator_logs(tmp_path):
+    """The entry point end to end: a local Ray cluster started by the run, 2 actors, the same progress rows."""
+    from conftest import TINY, run_train
+    from spn_torchrl.records import read_progress
+
+    timing = {"wall_time_s", "steps_per_s"}
+    run_train(tmp_path / "local", "env=cartpole", *TINY)
+    run_train(tmp_path / "ray", "env=cartpole", *TINY, "evaluator=ray", "evaluator.num_actors=2", "evaluator.num_cpus=2")
+    local, remote = (read_progress(tmp_path / name / "progress.csv") for name in ("local", "ray"))
+    assert len(local) == len(remote) == 2
+    for a, b in zip(local, remote):
+        assert {k: v for k, v in a.items() if k not in timing} == {k: v for k, v in b.items() if k not in timing}
