@@ -84,6 +84,21 @@ class LocalEvaluatorConfig:
 
 
 @dataclass
+class RayEvaluatorConfig:
+    """Shard the population across Ray actors, each stepping its own batched env (spn_torchrl/ray_evaluator.py)."""
+
+    name: str = "ray"
+    address: Optional[str] = None  # a running cluster ("auto", "ray://head:10001"); None starts a local one
+    num_actors: int = 2
+    num_cpus_per_actor: float = 1.0
+    num_cpus: Optional[int] = None  # CPUs of a local cluster started here (None: all of this machine's)
+    max_restarts: int = 1  # a dead actor is restarted this many times and its shard re-run (rollouts are deterministic)
+    start_timeout_s: float = 300.0  # all actors must be up (env built) within this time
+    call_timeout_s: Optional[float] = None  # one population evaluation must finish within this time (None: no limit)
+    ship_code: bool = False  # upload this checkout's spn_torchrl to the cluster (runtime_env py_modules)
+
+
+@dataclass
 class LoggerConfig:
     backend: str = "csv"  # "csv", "wandb" or "none"
     project: str = "spn_torchrl"
@@ -114,6 +129,7 @@ def register_configs() -> None:
     cs.store(group="env", name="env_schema", node=EnvConfig)
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
     cs.store(group="evaluator", name="local_schema", node=LocalEvaluatorConfig)
+    cs.store(group="evaluator", name="ray_schema", node=RayEvaluatorConfig)
 
 
 def _require(ok: bool, message: str) -> None:
@@ -188,6 +204,21 @@ def validate_ppo(algo: DictConfig) -> None:
     _require(0 <= algo.decay <= 1, f"algo.decay must be in [0, 1], got {algo.decay}")
 
 
+def validate_ray_evaluator(evaluator: DictConfig, population: int) -> None:
+    """One clear sentence per bad Ray evaluator value."""
+    _require(
+        1 <= evaluator.num_actors <= population,
+        f"evaluator.num_actors must be in [1, algo.population={population}], got {evaluator.num_actors}",
+    )
+    _require(evaluator.num_cpus_per_actor > 0, f"evaluator.num_cpus_per_actor must be > 0, got {evaluator.num_cpus_per_actor}")
+    _require(evaluator.max_restarts >= 0, f"evaluator.max_restarts must be >= 0, got {evaluator.max_restarts}")
+    _require(evaluator.start_timeout_s > 0, f"evaluator.start_timeout_s must be > 0, got {evaluator.start_timeout_s}")
+    _require(
+        evaluator.call_timeout_s is None or evaluator.call_timeout_s > 0,
+        f"evaluator.call_timeout_s must be > 0 or null, got {evaluator.call_timeout_s}",
+    )
+
+
 def validate(cfg: DictConfig) -> None:
     """Check a whole run config before anything is built."""
     kind = cfg.algo.get("kind")
@@ -200,6 +231,8 @@ def validate(cfg: DictConfig) -> None:
         cfg.evaluator.name in EVALUATORS,
         f"evaluator.name must be one of {sorted(EVALUATORS)}, got {cfg.evaluator.name!r}",
     )
+    if cfg.evaluator.name == "ray":
+        validate_ray_evaluator(cfg.evaluator, cfg.algo.population)
 
     _require(
         cfg.env.backend in BACKENDS,

@@ -13,6 +13,10 @@ class CheckpointError(SpnError):
     """A checkpoint is corrupt or belongs to another task or architecture."""
 
 
+class EvaluatorError(SpnError):
+    """A remote evaluator could not start, lost a worker, or did not answer in time."""
+
+
 class DependencyError(SpnError, ImportError):
     """An optional dependency (an extra of the package) or a system library is missing."""
 

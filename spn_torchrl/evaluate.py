@@ -108,7 +108,21 @@ def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Popu
     return PopulationEvaluator(env, spn, spec.max_episode_steps)
 
 
-EVALUATORS: dict[str, Callable[[DictConfig, TaskSpec, PopulationSPN], Evaluator]] = {"local": local_evaluator}
+def ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The population sharded across Ray actors (spn_torchrl/ray_evaluator.py); needs the ``ray`` extra."""
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ConfigError("evaluator=ray needs Ray, which is not installed: pip install 'spn_torchrl[ray]'") from None
+    from spn_torchrl.ray_evaluator import make_ray_evaluator
+
+    return make_ray_evaluator(cfg, spec, spn)
+
+
+EVALUATORS: dict[str, Callable[[DictConfig, TaskSpec, PopulationSPN], Evaluator]] = {
+    "local": local_evaluator,
+    "ray": ray_evaluator,
+}
 
 
 def make_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:

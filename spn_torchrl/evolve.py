@@ -15,7 +15,7 @@ from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluate import episode_seed, make_evaluator
 from spn_torchrl.policies import init_fixed_weights, mask_density, spn_from_config
-from spn_torchrl.records import Progress, logger_run_id, make_logger
+from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
 
 log = logging.getLogger("spn_torchrl")
 
@@ -69,8 +69,10 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     logger = None
     k, episodes = algo.elite_candidates, algo.elite_episodes
     row: dict[str, Any] = {}
+    failed = True
     try:
         logger = make_logger(cfg, run_dir, run_name, wandb_id)
+        log.info("run %s in %s", run_name, run_dir)
         wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
             t0 = time.perf_counter()
@@ -133,8 +135,10 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
                 total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
             )
+        failed = False
     finally:
-        evaluator.close()
-        if logger is not None:
-            logger.close()
+        try:
+            evaluator.close()
+        finally:
+            close_logger(logger, failed)
     return row

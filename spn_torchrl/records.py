@@ -107,8 +107,22 @@ def logger_run_id(logger) -> str | None:
     return logger.experiment.id if isinstance(logger, WandbLogger) else None
 
 
+def sweep_name() -> str | None:
+    """The name of this job's Hydra multirun directory (shared by all jobs of a sweep), None outside a multirun."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    if not HydraConfig.initialized():
+        return None
+    hydra_cfg = HydraConfig.get()
+    if hydra_cfg.mode != RunMode.MULTIRUN:
+        return None
+    return Path(hydra_cfg.sweep.dir).name
+
+
 def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | None = None):
-    """A torchrl logger for the run (``None`` for ``logger.backend=none``)."""
+    """A torchrl logger for the run (``None`` for ``logger.backend=none``). W&B runs of one Hydra sweep share
+    the group ``logger.group``, by default the sweep directory's name."""
     backend = cfg.logger.backend
     if backend == "none":
         return None
@@ -126,8 +140,19 @@ def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | Non
         id=run_id,
         project=cfg.logger.project,
         entity=cfg.logger.entity,
-        group=cfg.logger.group,
+        group=cfg.logger.group or sweep_name(),
         mode=mode,
         offline=mode == "offline",
         config=OmegaConf.to_container(cfg, resolve=True),
     )
+
+
+def close_logger(logger, failed: bool) -> None:
+    """Finish the run's logger; a W&B run of a failed job is marked failed (exit code 1), not left running."""
+    if logger is None:
+        return
+    from torchrl.record.loggers import WandbLogger
+
+    if failed and isinstance(logger, WandbLogger):
+        logger.experiment.finish(exit_code=1)  # the close() below then finds the run finished
+    logger.close()

@@ -11,6 +11,7 @@ import torch
 from omegaconf import DictConfig
 
 from spn_torchrl.config import validate
+from spn_torchrl.records import sweep_name
 
 log = logging.getLogger("spn_torchrl")
 
@@ -25,8 +26,12 @@ def hydra_run_dir() -> Path | None:
 
 
 def run_name(cfg: DictConfig) -> str:
-    """``{env}__{algo}__{seed}__{time}`` unless ``run_name`` is set."""
-    return cfg.run_name or f"{cfg.env.name}__{cfg.algo.name}__{cfg.seed}__{int(time.time())}"
+    """``run_name`` if set; in a Hydra sweep ``{env}__{algo}__{seed}`` (the sweep names the group); else
+    ``{env}__{algo}__{seed}__{time}``, so that repeated single runs stay apart."""
+    if cfg.run_name:
+        return cfg.run_name
+    name = f"{cfg.env.name}__{cfg.algo.name}__{cfg.seed}"
+    return name if sweep_name() is not None else f"{name}__{int(time.time())}"
 
 
 def run(cfg: DictConfig, run_dir: str | Path | None = None) -> dict[str, Any]:

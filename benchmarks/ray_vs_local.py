@@ -1,0 +1,107 @@
+"""One GA generation (population rollout + elite re-evaluation) on the local evaluator and on Ray actors.
+
+    python benchmarks/ray_vs_local.py --env halfcheetah --population 200 --actors 2
+
+Prints start-up and generation wall times of both, the overhead Ray adds, whether every episode is
+identical, and the payload bytes the Ray evaluator moved.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import torch
+from hydra import compose, initialize_config_dir
+
+from spn_torchrl import ga
+from spn_torchrl.config import register_configs, validate
+from spn_torchrl.envs import task_spec
+from spn_torchrl.evaluate import Episodes, episode_seed, make_evaluator
+from spn_torchrl.evolve import spn_from_config
+from spn_torchrl.policies import init_fixed_weights
+
+CONF = str(Path(__file__).resolve().parents[1] / "conf")
+
+
+def generation(evaluator, population: torch.Tensor, k: int, episodes: int, seed: int) -> tuple[float, Episodes, Episodes]:
+    """Wall time of one generation's evaluations, and their episodes."""
+    t0 = time.perf_counter()
+    fitness = evaluator(population, episode_seed(seed, 1, 0))
+    candidates = ga.elite_candidates(fitness.returns, k)
+    reeval = evaluator(population[candidates].repeat_interleave(episodes, 0), episode_seed(seed, 1, 1))
+    return time.perf_counter() - t0, fitness, reeval
+
+
+def measure(cfg, spec, spn, population) -> dict:
+    t0 = time.perf_counter()
+    evaluator = make_evaluator(cfg, spec, spn)
+    startup = time.perf_counter() - t0
+    try:
+        seconds, fitness, reeval = generation(evaluator, population, cfg.algo.elite_candidates, cfg.algo.elite_episodes, cfg.seed)
+    finally:
+        evaluator.close()
+    steps = fitness.total_steps + reeval.total_steps
+    return {
+        "startup_s": round(startup, 2),
+        "generation_s": round(seconds, 2),
+        "env_steps": steps,
+        "steps_per_s": round(steps / seconds),
+        "bytes_setup": getattr(evaluator, "bytes_setup", 0),
+        "bytes_sent": getattr(evaluator, "bytes_sent", 0),
+        "bytes_received": getattr(evaluator, "bytes_received", 0),
+        "episodes": (fitness, reeval),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--env", default="halfcheetah")
+    parser.add_argument("--algo", default="conn_ga")
+    parser.add_argument("--population", type=int, default=200)
+    parser.add_argument("--actors", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    register_configs()
+    overrides = [f"env={args.env}", f"algo={args.algo}", f"algo.population={args.population}", f"seed={args.seed}"]
+    with initialize_config_dir(config_dir=CONF, version_base=None):
+        local_cfg = compose(config_name="config", overrides=overrides)
+        ray_cfg = compose(
+            config_name="config",
+            overrides=[*overrides, "evaluator=ray", f"evaluator.num_actors={args.actors}", f"evaluator.num_cpus={args.actors}"],
+        )
+    validate(ray_cfg)
+    torch.set_num_threads(1)
+    spec = task_spec(local_cfg.env.id)
+    generator = torch.Generator().manual_seed(args.seed)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, local_cfg.algo.hidden, generator)
+    spn = spn_from_config(local_cfg, spec, w1, w2)
+    population = ga.initial_population(args.population, spn.genome_size, local_cfg.algo.sigma, generator)
+
+    local = measure(local_cfg, spec, spn, population)
+    remote = measure(ray_cfg, spec, spn, population)
+    identical = all(
+        torch.equal(getattr(a, f), getattr(b, f))
+        for a, b in zip(local.pop("episodes"), remote.pop("episodes"))
+        for f in ("returns", "steps", "spikes")
+    )
+    report = {
+        "env": spec.env_id,
+        "algo": args.algo,
+        "population": args.population,
+        "genome_size": spn.genome_size,
+        "actors": args.actors,
+        "local": local,
+        "ray": remote,
+        "ray_overhead_s": round(remote["generation_s"] - local["generation_s"], 2),
+        "identical_episodes": identical,
+        "float32_genome_bytes_per_generation": 4 * spn.genome_size * (args.population + ray_cfg.algo.elite_candidates * ray_cfg.algo.elite_episodes),
+    }
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,198 @@
+"""Population evaluation on Ray: ``evaluator=ray``.
+
+The population is cut into contiguous shards, one per actor. Each actor builds its batched env and SPN once
+(the fixed weights reach it once, through the object store) and runs its shard with the local
+:class:`~spn_torchrl.evaluate.PopulationEvaluator`, seeding its env slot j with ``seed + offset + j`` so that
+every individual gets the same episode as in the local evaluator. Per call only the genomes go out (connection
+genomes as packed mask bits) and three numbers per individual come back.
+
+Only this module imports Ray, and only :func:`spn_torchrl.evaluate.ray_evaluator` imports this module.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import ray
+import torch
+from omegaconf import DictConfig
+
+from spn_torchrl.envs import TaskSpec, make_population_env
+from spn_torchrl.errors import EvaluatorError
+from spn_torchrl.evaluate import Episodes, PopulationEvaluator
+from spn_torchrl.policies import PopulationSPN
+
+log = logging.getLogger("spn_torchrl")
+
+
+def shard_bounds(count: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` contiguous [start, stop) ranges covering ``count`` items, sizes differing by at most one
+    (the first ``count % parts`` get one more). For ``count <= population`` every range fits in the
+    matching range of the population, so actor i's env always holds shard i."""
+    base, extra = divmod(count, parts)
+    bounds, start = [], 0
+    for i in range(parts):
+        stop = start + base + (i < extra)
+        bounds.append((start, stop))
+        start = stop
+    return bounds
+
+
+def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
+    """What crosses the network for a genome set [B, D]: connection genomes as their masks, packed 8 genes a
+    byte ([B, ceil(D/8)] uint8: a mask is all a connection genome decides); weight genomes as float32 [B, D]."""
+    if spn.genome_kind == "connections":
+        mask1, mask2 = spn.masks(genomes)
+        return np.packbits(torch.cat([mask1.flatten(1), mask2.flatten(1)], 1).numpy(), axis=1)
+    return np.ascontiguousarray(genomes.detach().to(torch.float32).cpu().numpy())
+
+
+def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
+    """Genomes [B, D] that give the SPN exactly the masks (or weights) :func:`encode_genomes` sent."""
+    if genome_kind == "connections":
+        bits = torch.from_numpy(np.unpackbits(payload, axis=1, count=genome_size).astype(bool))
+        # scores of +-inf give sigmoid 1 or 0: the same mask for any threshold in (0, 1)
+        return torch.where(bits, math.inf, -math.inf)
+    return torch.tensor(payload)
+
+
+@ray.remote
+class ShardActor:
+    """Holds one batched env of ``capacity`` slots and the SPN; evaluates shards of encoded genomes."""
+
+    def __init__(self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, num_workers: int, max_episode_steps: int) -> None:
+        torch.set_num_threads(1)
+        env = make_population_env(env_id, capacity, backend=backend, num_workers=num_workers)
+        self.evaluator = PopulationEvaluator(env, spn, max_episode_steps)
+        self.genome_kind, self.genome_size = spn.genome_kind, spn.genome_size
+
+    def ready(self) -> int:
+        return self.evaluator.size
+
+    def evaluate(self, payload: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seed)
+        return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+
+
+class RayEvaluator:
+    """The :class:`~spn_torchrl.evaluate.Evaluator` over Ray actors; counts the payload bytes it moves."""
+
+    def __init__(self, actors: list, capacity: int, spn: PopulationSPN, call_timeout_s: float | None, owns_ray: bool) -> None:
+        self.actors = actors
+        self.capacity = capacity
+        self.spn = spn
+        self.call_timeout_s = call_timeout_s
+        self.owns_ray = owns_ray
+        self.bytes_setup = 0  # fixed weights sent once at start
+        self.bytes_sent = 0  # genomes and seeds, every call
+        self.bytes_received = 0  # returns, steps, spikes, every call
+
+    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
+        count = genomes.shape[0]
+        if not 0 < count <= self.capacity:
+            raise ValueError(f"the Ray actors hold {self.capacity} individuals, got {count} genomes")
+        payload = encode_genomes(self.spn, genomes)
+        calls = []
+        for index, (start, stop) in enumerate(shard_bounds(count, len(self.actors))):
+            if stop > start:
+                shard = payload[start:stop]
+                self.bytes_sent += shard.nbytes + 8  # + the int64 seed
+                calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, seed + start)))
+        deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
+        parts = [self._collect(*call, deadline) for call in calls]
+        returns, steps, spikes = (torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts))
+        return Episodes(returns, steps, spikes)
+
+    def _collect(self, index: int, start: int, stop: int, ref, deadline: float | None):
+        where = f"Ray actor {index} (individuals {start}..{stop - 1})"
+        try:
+            result = ray.get(ref, timeout=None if deadline is None else max(0.0, deadline - time.monotonic()))
+        except ray.exceptions.GetTimeoutError:
+            raise EvaluatorError(f"{where} did not answer within evaluator.call_timeout_s={self.call_timeout_s} s") from None
+        except ray.exceptions.RayActorError as err:
+            raise EvaluatorError(f"{where} died and could not be restarted (evaluator.max_restarts): {_first_line(err)}") from err
+        except ray.exceptions.RayTaskError as err:
+            raise EvaluatorError(f"{where} failed: {_first_line(err.cause or err)}") from err
+        if any(len(part) != stop - start for part in result):
+            raise EvaluatorError(f"{where} returned {len(result[0])} results for {stop - start} genomes")
+        self.bytes_received += sum(part.nbytes for part in result)
+        return result
+
+    def close(self) -> None:
+        for actor in self.actors:
+            ray.kill(actor)
+        self.actors = []
+        if self.owns_ray and ray.is_initialized():
+            ray.shutdown()
+            self.owns_ray = False
+
+
+def _first_line(err: BaseException) -> str:
+    text = str(err).strip()
+    return f"{type(err).__name__}: {text.splitlines()[0] if text else ''}"
+
+
+def connect(evaluator: DictConfig) -> bool:
+    """Join the cluster at ``evaluator.address`` or start a local one; True when this call started Ray."""
+    if ray.is_initialized():
+        return False
+    # ship_code: Ray uploads this package for the job's workers (only possible when this process joins)
+    runtime_env = {"py_modules": [str(Path(__file__).resolve().parent)]} if evaluator.ship_code else None
+    try:
+        if evaluator.address is None:
+            ray.init(num_cpus=evaluator.num_cpus, include_dashboard=False, runtime_env=runtime_env)
+        else:
+            ray.init(address=evaluator.address, runtime_env=runtime_env)
+    except ConnectionError as err:
+        raise EvaluatorError(f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}") from None
+    return True
+
+
+def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> RayEvaluator:
+    """Start ``evaluator.num_actors`` shard actors (each with its env built) and wait until all are up."""
+    ev = cfg.evaluator
+    owns_ray = connect(ev)
+    cpus = ray.cluster_resources().get("CPU", 0)
+    if owns_ray and ev.address is None and ev.num_actors * ev.num_cpus_per_actor > cpus:
+        ray.shutdown()
+        raise EvaluatorError(
+            f"evaluator.num_actors={ev.num_actors} x evaluator.num_cpus_per_actor={ev.num_cpus_per_actor} CPUs do not fit "
+            f"in the local Ray cluster's {cpus:g} CPUs: lower one of them or set evaluator.num_cpus"
+        )
+    population = cfg.algo.population
+    capacities = [stop - start for start, stop in shard_bounds(population, ev.num_actors)]
+    options = {"num_cpus": ev.num_cpus_per_actor, "max_restarts": ev.max_restarts, "max_task_retries": ev.max_restarts}
+    # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts;
+    # a copy without the effective weights of an earlier set_genomes, which would only add bytes
+    bare = copy.copy(spn)
+    bare.w1_eff = bare.w2_eff = None
+    actors = [
+        ShardActor.options(**options).remote(bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps)
+        for size in capacities
+    ]
+    evaluator = RayEvaluator(actors, population, spn, ev.call_timeout_s, owns_ray)
+    evaluator.bytes_setup = len(actors) * (spn.w1.nbytes + spn.w2.nbytes)
+    try:
+        started, waiting = ray.wait([a.ready.remote() for a in actors], num_returns=len(actors), timeout=ev.start_timeout_s)
+        if waiting:
+            raise EvaluatorError(
+                f"{len(waiting)} of {len(actors)} Ray actors did not start within evaluator.start_timeout_s="
+                f"{ev.start_timeout_s} s (the cluster has {cpus:g} CPUs, the actors ask for {len(actors)} x "
+                f"evaluator.num_cpus_per_actor={ev.num_cpus_per_actor}): lower evaluator.num_actors or "
+                "evaluator.num_cpus_per_actor, or grow the cluster"
+            )
+        try:
+            ray.get(started)
+        except ray.exceptions.RayError as err:
+            cause = err.cause if isinstance(err, ray.exceptions.RayTaskError) and err.cause else err
+            raise EvaluatorError(f"a Ray actor failed to build its env: {_first_line(cause)}") from err
+    except BaseException:
+        evaluator.close()
+        raise
+    log.info("Ray evaluator: %d actors holding %s individuals", len(actors), capacities)
+    return evaluator
