@@ -20,7 +20,7 @@ from spn_torchrl import ga
 from spn_torchrl.config import register_configs, validate
 from spn_torchrl.envs import task_spec
 from spn_torchrl.evaluate import Episodes, episode_seed, make_evaluator
-from spn_torchrl.evolve import spn_from_config
+from spn_torchrl.policies import spn_from_config
 from spn_torchrl.policies import init_fixed_weights
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
@@ -78,7 +78,7 @@ def main() -> None:
     spec = task_spec(local_cfg.env.id)
     generator = torch.Generator().manual_seed(args.seed)
     w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, local_cfg.algo.hidden, generator)
-    spn = spn_from_config(local_cfg, spec, w1, w2)
+    spn = spn_from_config(local_cfg.algo, spec, w1, w2)
     population = ga.initial_population(args.population, spn.genome_size, local_cfg.algo.sigma, generator)
 
     local = measure(local_cfg, spec, spn, population)

@@ -11,8 +11,8 @@ from omegaconf import DictConfig, OmegaConf
 from spn_torchrl import checkpoint
 from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import CheckpointError, SpnError
-from spn_torchrl.evolve import FORMAT, spn_from_config
-from spn_torchrl.policies import PopulationSPN
+from spn_torchrl.evolve import FORMAT
+from spn_torchrl.policies import PopulationSPN, spn_from_config
 
 
 @dataclass
@@ -57,7 +57,7 @@ def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
     if not 1 <= generation <= count:
         raise SpnError(f"--generation must be in [1, {count}] for {run_dir}, got {generation}")
     spec = task_spec(state["meta"]["env_id"])
-    spn = spn_from_config(cfg, spec, state["w1"], state["w2"])
+    spn = spn_from_config(cfg.algo, spec, state["w1"], state["w2"])
     genome = elites[generation - 1]
     spn.set_genomes(genome[None])
     return Elite(run_dir, cfg, spec, spn, genome, generation, count, elites, state)

@@ -23,6 +23,7 @@ import torch
 
 from spn_torchrl import neurons
 from spn_torchrl.elite import Elite, load_elite
+from spn_torchrl.energy import e_spn, e_spn_masked
 from spn_torchrl.envs import make_population_env
 from spn_torchrl.errors import SpnError, require
 from spn_torchrl.evaluate import Episodes, PopulationEvaluator
@@ -72,15 +73,16 @@ def make_render_env(env_id: str) -> gym.Env:
         return gym.make(env_id, render_mode="rgb_array")
 
 
-def run_episode(elite: Elite, seed: int, render: bool = False) -> Trace:
-    """One episode on a plain Gymnasium env, recording observations, actions, hidden spikes (and frames)."""
+def run_episode(elite: Elite, seed: int, render: bool = False, max_steps: int | None = None) -> Trace:
+    """One episode (cut at ``max_steps`` if given) on a plain Gymnasium env, recording observations, actions,
+    hidden spikes (and frames)."""
     elite.spn.set_genomes(elite.genome[None])
     env = make_render_env(elite.spec.env_id) if render else gym.make(elite.spec.env_id)
     observations, actions, spikes, frames = [], [], [], []
     total = 0.0
     try:
         obs, _ = env.reset(seed=seed)
-        for _ in range(elite.spec.max_episode_steps):
+        for _ in range(min(max_steps or elite.spec.max_episode_steps, elite.spec.max_episode_steps)):
             if render:
                 frames.append(env.render())
             o = torch.as_tensor(obs, dtype=torch.float32)
@@ -127,12 +129,8 @@ def write_video(frames: list[np.ndarray], path: Path, fps: int) -> Path:
     return path
 
 
-def inference_energy(elite: Elite, spike_rate: float) -> dict[str, float] | None:
-    """Energy per env step (pJ) from :mod:`spn_torchrl.energy` where that module exists, else None."""
-    try:
-        from spn_torchrl.energy import e_spn, e_spn_masked
-    except ImportError:
-        return None
+def inference_energy(elite: Elite, spike_rate: float) -> dict[str, float]:
+    """SPN inference energy per env step (pJ): the paper's dense count and the mask-aware one."""
     x1, x2 = elite.masks
     h = elite.cfg.algo.hidden
     return {
@@ -176,6 +174,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--episodes", type=int, default=10, help="episodes to replay (default 10)")
     parser.add_argument("--seed", type=int, default=0, help="env seed of the replay (default 0)")
     parser.add_argument("--video", type=Path, default=None, help="write an MP4 of one episode here")
+    parser.add_argument(
+        "--max-steps", type=int, default=None, help="cut the recorded episode (video, pictures) after this many steps"
+    )
     parser.add_argument("--pictures", type=Path, default=None, help="write spike raster and connectivity pictures here")
     return parser.parse_args(argv)
 
@@ -184,6 +185,8 @@ def play(args: argparse.Namespace) -> dict[str, float]:
     """Replay, print, and write what ``args`` asks for; returns the printed metrics."""
     if args.episodes < 1:
         raise SpnError(f"--episodes must be >= 1, got {args.episodes}")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise SpnError(f"--max-steps must be >= 1, got {args.max_steps}")
     elite = load_elite(args.run_dir, args.generation)
     if args.video is not None:  # fail before the replay, not after it
         require("imageio", "video")
@@ -199,12 +202,11 @@ def play(args: argparse.Namespace) -> dict[str, float]:
     print(f"hidden spike rate {metrics['spike_rate']:.4f} spikes per neuron per simulation step")
     print(f"mask density {metrics['mask_density']:.4f}")
     energy = inference_energy(elite, metrics["spike_rate"])
-    if energy is not None:
-        metrics.update({f"energy_{k}": v for k, v in energy.items()})
-        print(f"inference energy per step: {energy['dense_pj']:.1f} pJ (paper, dense), "
-              f"{energy['mask_aware_pj']:.1f} pJ (mask-aware)")
+    metrics.update({f"energy_{k}": v for k, v in energy.items()})
+    print(f"inference energy per step: {energy['dense_pj']:.1f} pJ (paper, dense), "
+          f"{energy['mask_aware_pj']:.1f} pJ (mask-aware)")
     if args.video is not None or args.pictures is not None:
-        trace = run_episode(elite, args.seed, render=args.video is not None)
+        trace = run_episode(elite, args.seed, render=args.video is not None, max_steps=args.max_steps)
         if args.video is not None:
             fps = int(gym.make(elite.spec.env_id).metadata.get("render_fps", 30))
             path = write_video(trace.frames, args.video, fps)

@@ -99,11 +99,11 @@ def test_video_of_halfcheetah(halfcheetah_run, tmp_path):
     pytest.importorskip("imageio_ffmpeg")
     gl_backend_or_skip("HalfCheetah-v5")
     video = tmp_path / "cheetah.mp4"
-    done = play(halfcheetah_run, "--episodes", "1", "--video", video)
+    done = play(halfcheetah_run, "--episodes", "1", "--video", video, "--max-steps", "120")
     assert done.returncode == 0, done.stderr
     frames = imageio.mimread(video, memtest=False)
-    assert len(frames) == 1000
-    for frame in frames[0], frames[500], frames[-1]:  # the tracking camera keeps the robot in view
+    assert len(frames) == 120
+    for frame in frames[0], frames[60], frames[-1]:  # the tracking camera keeps the robot in view
         assert frame.ndim == 3 and frame.shape[2] == 3
         r, g, b = (frame[..., i].astype(int) for i in range(3))
         robot = (r > g + 30) & (g > b + 10)  # its tan and pink bodies; the floor is black and pale green

@@ -14,7 +14,7 @@ from spn_torchrl.config import register_configs, validate  # noqa: E402
 from spn_torchrl.envs import make_population_env, task_spec  # noqa: E402
 from spn_torchrl.errors import ConfigError, EvaluatorError  # noqa: E402
 from spn_torchrl.evaluate import PopulationEvaluator, make_evaluator  # noqa: E402
-from spn_torchrl.evolve import spn_from_config  # noqa: E402
+from spn_torchrl.policies import spn_from_config  # noqa: E402
 from spn_torchrl.policies import init_fixed_weights  # noqa: E402
 from spn_torchrl.ray_evaluator import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
 
@@ -40,7 +40,7 @@ def setup(cfg, sigma=1.0):
     spec = task_spec(cfg.env.id)
     generator = torch.Generator().manual_seed(cfg.seed)
     w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, cfg.algo.hidden, generator)
-    spn = spn_from_config(cfg, spec, w1, w2)
+    spn = spn_from_config(cfg.algo, spec, w1, w2)
     genomes = ga.initial_population(cfg.algo.population, spn.genome_size, sigma, generator)
     return spec, spn, genomes
 
