@@ -74,3 +74,16 @@ def test_wrong_type_and_unknown_key_are_rejected_by_the_schema():
     with pytest.raises(ConfigCompositionException) as err:
         make("algo.populaton=10")
     assert isinstance(err.value.__cause__, ConfigAttributeError) and "populaton" in str(err.value.__cause__)
+
+
+@pytest.mark.parametrize("preset", sorted(p.stem for p in Path(CONF, "experiment").glob("paper_*.yaml")))
+def test_paper_presets_compose_for_every_swept_method(preset):
+    from omegaconf import OmegaConf
+
+    params = OmegaConf.load(Path(CONF, "experiment", f"{preset}.yaml")).hydra.sweeper.params
+    algos = str(params.algo).split(",")
+    assert "conn_ga" in algos and str(params.seed) == "range(0,10)"
+    for algo in algos:
+        cfg = make(f"+experiment={preset}", f"algo={algo}")
+        assert cfg.env.name == preset.removeprefix("paper_") and cfg.algo.name == algo
+        validate(cfg)
