@@ -11,7 +11,7 @@ from omegaconf import DictConfig
 from torchrl.envs import EnvBase
 
 from spn_torchrl.envs import TaskSpec, make_population_env
-from spn_torchrl.errors import ConfigError
+from spn_torchrl.errors import ConfigError, require
 from spn_torchrl.policies import PopulationSPN
 
 
@@ -110,10 +110,7 @@ def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Popu
 
 def ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
     """The population sharded across Ray actors (spn_torchrl/ray_evaluator.py); needs the ``ray`` extra."""
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise ConfigError("evaluator=ray needs Ray, which is not installed: pip install 'spn_torchrl[ray]'") from None
+    require("ray", "ray")
     from spn_torchrl.ray_evaluator import make_ray_evaluator
 
     return make_ray_evaluator(cfg, spec, spn)
