@@ -36,8 +36,8 @@ def episode_seed(run_seed: int, generation: int, phase: int) -> int:
 class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
-    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; a call with fewer than P genomes leaves the
-    remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
+    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; a call
+    with fewer than P genomes leaves the remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
     mask: a backend that honours it (mujoco_batch) does not simulate them, others ignore it.
     """
 
