@@ -18,7 +18,6 @@ from torchrl.envs import (
     StepCounter,
     TransformedEnv,
 )
-from torchrl.data import Categorical
 
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.mujoco_batch import mujoco_batch_backend
@@ -98,11 +97,6 @@ BACKENDS: dict[str, Callable[..., EnvBase]] = {
 }
 
 
-def register_backend(name: str, factory: Callable[..., EnvBase]) -> None:
-    """Make ``env.backend=name`` build envs with ``factory(env_id, num_envs, num_workers)``."""
-    BACKENDS[name] = factory
-
-
 def make_population_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
     """One TorchRL env of ``num_envs`` copies of a task, with ``DoubleToFloat``, ``StepCounter`` and
     ``RewardSum``; discrete actions are indices."""
@@ -110,7 +104,3 @@ def make_population_env(env_id: str, num_envs: int, *, backend: str = "gymnasium
         raise ConfigError(f"env.backend: unknown backend {backend!r}, expected one of {sorted(BACKENDS)}")
     base = BACKENDS[backend](env_id, num_envs, num_workers)
     return TransformedEnv(base, Compose(DoubleToFloat(), StepCounter(), RewardSum()))
-
-
-def is_discrete(env: EnvBase) -> bool:
-    return isinstance(env.action_spec, Categorical)

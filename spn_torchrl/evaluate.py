@@ -28,6 +28,11 @@ class Episodes:
         return int(self.steps.sum())
 
 
+def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_steps: int) -> float:
+    """Hidden spikes per neuron per simulation step over episodes (the rate the energy model uses)."""
+    return float(spikes.sum() / (steps.sum() * hidden * time_steps))
+
+
 def episode_seed(run_seed: int, generation: int, phase: int) -> int:
     """Env seed of one rollout, derived from the run seed so that a resumed run replays it exactly."""
     return int(np.random.SeedSequence([run_seed, generation, phase]).generate_state(1)[0] >> 1)

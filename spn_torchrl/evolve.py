@@ -13,8 +13,8 @@ from omegaconf import DictConfig, OmegaConf
 from spn_torchrl import checkpoint, ga
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import episode_seed, make_evaluator
-from spn_torchrl.policies import init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.evaluate import episode_seed, make_evaluator, spike_rate
+from spn_torchrl.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
 
 log = logging.getLogger("spn_torchrl")
@@ -58,7 +58,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
         generator.manual_seed(cfg.seed)
         w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
-        dim = w1.numel() + w2.numel()
+        dim = genome_size(w1, w2)
         center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
         population = ga.initial_population(algo.population, dim, algo.sigma, generator, center)
         start, elites, total_steps, wall, wandb_id = 0, [], 0, 0.0, None
@@ -84,8 +84,6 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             elite = population[elite_index]
             elites.append(elite.clone())
             slot = int((candidates == elite_index).nonzero()[0]) * episodes
-            elite_spikes = reeval.spikes[slot : slot + episodes].sum()
-            elite_steps = reeval.steps[slot : slot + episodes].sum()
             mask1, mask2 = spn.masks(elite[None])
             population = ga.next_generation(
                 population, fitness, sigma=algo.sigma, truncation=algo.truncation, generator=generator, elitism=algo.elitism
@@ -104,7 +102,9 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "wall_time_s": round(wall, 3),
                 "steps_per_s": round(steps / seconds, 1),
                 "mask_density": mask_density(mask1, mask2),
-                "spike_rate": float(elite_spikes / (elite_steps * algo.hidden * algo.time_steps)),
+                "spike_rate": spike_rate(
+                    reeval.spikes[slot : slot + episodes], reeval.steps[slot : slot + episodes], algo.hidden, algo.time_steps
+                ),
                 "synapses_l1": int(mask1.sum()),
                 "synapses_l2": int(mask2.sum()),
                 "elite_index": elite_index,

@@ -37,6 +37,24 @@ def li_step(v: torch.Tensor, current: torch.Tensor, decay: float = DECAY) -> tor
     return decay * v + current
 
 
+def lif_spikes(
+    current: torch.Tensor,
+    time_steps: int = TIME_STEPS,
+    decay: float = DECAY,
+    v_th: float = V_TH,
+    spike_fn: SpikeFn = heaviside,
+) -> list[torch.Tensor]:
+    """Spikes of a LIF layer at each of ``time_steps`` simulation steps, from a zero state, under a constant
+    input ``current``."""
+    v = torch.zeros_like(current)
+    s = torch.zeros_like(current)
+    spikes = []
+    for _ in range(time_steps):
+        v, s = lif_step(v, s, current, decay, v_th, spike_fn)
+        spikes.append(s)
+    return spikes
+
+
 def spn_dynamics(
     w1: torch.Tensor,
     w2: torch.Tensor,
@@ -54,14 +72,10 @@ def spn_dynamics(
     the spikes (see :mod:`spn_torchrl.surrogate`); its forward values must be the Heaviside step's.
     """
     current = torch.bmm(w1, obs.unsqueeze(-1)).squeeze(-1)
-    v1 = torch.zeros_like(current)
-    s1 = torch.zeros_like(current)
+    spikes = lif_spikes(current, time_steps, decay, v_th, spike_fn)
     v2 = obs.new_zeros(w2.shape[0], w2.shape[1])
     out = None
-    spike_sum = torch.zeros_like(current)
-    for _ in range(time_steps):
-        v1, s1 = lif_step(v1, s1, current, decay, v_th, spike_fn)
-        spike_sum = spike_sum + s1
+    for s1 in spikes:
         v2 = li_step(v2, torch.bmm(w2, s1.unsqueeze(-1)).squeeze(-1), decay)
         out = v2 if out is None else torch.maximum(out, v2)
-    return out, spike_sum.sum(-1)
+    return out, sum(spikes).sum(-1)

@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from spn_torchrl.errors import require
+from spn_torchrl.policies import mask_density
 
 
 def _pyplot():
@@ -48,10 +49,6 @@ def _mask_axes(fig, ax1, ax2, x1: np.ndarray, x2: np.ndarray):
     return im1, im2
 
 
-def _density(x1: np.ndarray, x2: np.ndarray) -> float:
-    return float((x1.sum() + x2.sum()) / (x1.size + x2.size))
-
-
 def connectivity_grid(masks1: torch.Tensor, masks2: torch.Tensor, path: Path, max_rows: int = 8) -> Path:
     """PNG grid of the elites' masks [G, h, n] and [G, m, h] (black: synapse exists), one row per chosen
     generation (evenly spaced, first and last included), layer 1 left, layer 2 right."""
@@ -61,10 +58,9 @@ def connectivity_grid(masks1: torch.Tensor, masks2: torch.Tensor, path: Path, ma
     fig, axes = plt.subplots(len(rows), 2, figsize=(10, 2.2 * len(rows)), dpi=100, squeeze=False,
                              gridspec_kw={"width_ratios": [1, 3]})
     for row, g in zip(axes, rows):
-        x1, x2 = masks1[g].numpy(), masks2[g].numpy()
-        _mask_axes(fig, row[0], row[1], x1, x2)
+        _mask_axes(fig, row[0], row[1], masks1[g].numpy(), masks2[g].numpy())
         row[0].set_title(f"generation {g + 1}: W1 mask", fontsize=9)
-        row[1].set_title(f"W2 mask (density of both layers {_density(x1, x2):.3f})", fontsize=9)
+        row[1].set_title(f"W2 mask (density of both layers {mask_density(masks1[g], masks2[g]):.3f})", fontsize=9)
     fig.tight_layout()
     return _save(fig, path)
 
@@ -79,10 +75,10 @@ def connectivity_gif(masks1: torch.Tensor, masks2: torch.Tensor, path: Path, sec
     title = fig.suptitle("")
     frames = []
     for g in range(masks1.shape[0]):
-        x1, x2 = masks1[g].numpy(), masks2[g].numpy()
-        im1.set_data(x1)
-        im2.set_data(x2)
-        title.set_text(f"elite connectivity, generation {g + 1}/{masks1.shape[0]} (density {_density(x1, x2):.3f})")
+        im1.set_data(masks1[g].numpy())
+        im2.set_data(masks2[g].numpy())
+        density = mask_density(masks1[g], masks2[g])
+        title.set_text(f"elite connectivity, generation {g + 1}/{masks1.shape[0]} (density {density:.3f})")
         fig.canvas.draw()
         frames.append(Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3]))
     plt.close(fig)

@@ -26,7 +26,8 @@ from spn_torchrl.elite import Elite, load_elite
 from spn_torchrl.energy import e_spn, e_spn_masked
 from spn_torchrl.envs import make_population_env
 from spn_torchrl.errors import SpnError, require
-from spn_torchrl.evaluate import Episodes, PopulationEvaluator
+from spn_torchrl.evaluate import Episodes, PopulationEvaluator, spike_rate
+from spn_torchrl.policies import mask_density
 
 GL_BACKENDS = ("egl", "osmesa")
 
@@ -55,13 +56,7 @@ def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
 def hidden_spike_train(elite: Elite, observation: torch.Tensor) -> torch.Tensor:
     """Hidden spikes [T', h] of one environment step (the LIF part of :func:`neurons.spn_dynamics`)."""
     algo = elite.cfg.algo
-    current = elite.weights[0] @ observation
-    v, s = torch.zeros_like(current), torch.zeros_like(current)
-    spikes = []
-    for _ in range(algo.time_steps):
-        v, s = neurons.lif_step(v, s, current, algo.decay, algo.v_threshold)
-        spikes.append(s)
-    return torch.stack(spikes)
+    return torch.stack(neurons.lif_spikes(elite.weights[0] @ observation, algo.time_steps, algo.decay, algo.v_threshold))
 
 
 def make_render_env(env_id: str) -> gym.Env:
@@ -143,11 +138,10 @@ def summary(elite: Elite, episodes: Episodes) -> dict[str, float]:
     """Mean return, hidden spike rate (per neuron per simulation step) and mask density of a replay."""
     algo = elite.cfg.algo
     x1, x2 = elite.masks
-    rate = float(episodes.spikes.sum() / (episodes.steps.sum() * algo.hidden * algo.time_steps))
     return {
         "mean_return": float(episodes.returns.mean()),
-        "spike_rate": rate,
-        "mask_density": float((x1.sum() + x2.sum()) / (x1.numel() + x2.numel())),
+        "spike_rate": spike_rate(episodes.spikes, episodes.steps, algo.hidden, algo.time_steps),
+        "mask_density": mask_density(x1, x2),
     }
 
 
