@@ -15,7 +15,7 @@ TIME_STEPS = 4
 
 def heaviside(v: torch.Tensor, v_th: float) -> torch.Tensor:
     """Spikes of potentials ``v``: ``v > v_th`` (strict), as floats."""
-    return (v > v_th).to(v.dtype)
+    return torch.gt(v, v_th, out=torch.empty_like(v))  # one kernel, no bool tensor to convert
 
 
 def lif_step(
@@ -26,9 +26,11 @@ def lif_step(
     v_th: float = V_TH,
     spike_fn: SpikeFn = heaviside,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One LIF step: the previous spike resets its neuron now; a spike is ``spike_fn(v, v_th)``
-    (``v > v_th`` strict by default; a surrogate-gradient function gives the same values)."""
-    v = decay * v * (1.0 - spikes) + current
+    """One LIF step ``v = decay * v * (1 - spikes) + current``: the previous spike resets its neuron now; a
+    spike is ``spike_fn(v, v_th)`` (``v > v_th`` strict by default; a surrogate-gradient function gives
+    the same values)."""
+    # spikes are 0 or 1, so the fused multiply-add rounds exactly as the separate product and sum
+    v = torch.addcmul(current, decay * v, 1.0 - spikes)
     return v, spike_fn(v, v_th)
 
 
@@ -43,16 +45,16 @@ def lif_spikes(
     decay: float = DECAY,
     v_th: float = V_TH,
     spike_fn: SpikeFn = heaviside,
-) -> list[torch.Tensor]:
-    """Spikes of a LIF layer at each of ``time_steps`` simulation steps, from a zero state, under a constant
-    input ``current``."""
-    v = torch.zeros_like(current)
-    s = torch.zeros_like(current)
-    spikes = []
-    for _ in range(time_steps):
+) -> torch.Tensor:
+    """Spikes [..., time_steps, h] of a LIF layer from a zero state under a constant input ``current``
+    [..., h]."""
+    v = current  # the first step from rest: decay * 0 + current
+    s = spike_fn(v, v_th)
+    spikes = [s]
+    for _ in range(time_steps - 1):
         v, s = lif_step(v, s, current, decay, v_th, spike_fn)
         spikes.append(s)
-    return spikes
+    return torch.stack(spikes, -2)
 
 
 def spn_dynamics(
@@ -66,16 +68,18 @@ def spn_dynamics(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Run the SPN for one environment step of a population.
 
-    w1 [P, h, n] and w2 [P, m, h] are the effective (masked) weights, obs [P, n] the observations held
-    constant for ``time_steps`` steps from a zero state. Returns the max over time of the output
-    potentials [P, m] and the hidden spike count per individual [P]. ``spike_fn`` lets a gradient through
-    the spikes (see :mod:`spn_torchrl.surrogate`); its forward values must be the Heaviside step's.
+    w1 [P, n, h] and w2 [P, h, m] are the effective (masked) weights, input-major (the transposes of the
+    [h, n] and [m, h] synapse matrices), obs [P, n] the observations held constant for ``time_steps``
+    steps from a zero state. Returns the max over time of the output potentials [P, m] and the hidden
+    spike count per individual [P]. ``spike_fn`` lets a gradient through the spikes (see
+    :mod:`spn_torchrl.surrogate`); its forward values must be the Heaviside step's.
     """
-    current = torch.bmm(w1, obs.unsqueeze(-1)).squeeze(-1)
-    spikes = lif_spikes(current, time_steps, decay, v_th, spike_fn)
-    v2 = obs.new_zeros(w2.shape[0], w2.shape[1])
-    out = None
-    for s1 in spikes:
-        v2 = li_step(v2, torch.bmm(w2, s1.unsqueeze(-1)).squeeze(-1), decay)
-        out = v2 if out is None else torch.maximum(out, v2)
-    return out, sum(spikes).sum(-1)
+    current = torch.bmm(obs.unsqueeze(1), w1).squeeze(1)
+    spikes = lif_spikes(current, time_steps, decay, v_th, spike_fn)  # [P, T, h]
+    inputs = torch.bmm(spikes, w2).transpose(0, 1).contiguous()  # [T, P, m]: all time steps' inputs at once
+    v2 = inputs[0]  # the first step from rest: decay * 0 + input
+    out = v2
+    for t in range(1, time_steps):
+        v2 = li_step(v2, inputs[t], decay)
+        out = torch.maximum(out, v2)
+    return out, spikes.sum((1, 2))

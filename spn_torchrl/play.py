@@ -56,7 +56,7 @@ def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
 def hidden_spike_train(elite: Elite, observation: torch.Tensor) -> torch.Tensor:
     """Hidden spikes [T', h] of one environment step (the LIF part of :func:`neurons.spn_dynamics`)."""
     algo = elite.cfg.algo
-    return torch.stack(neurons.lif_spikes(elite.weights[0] @ observation, algo.time_steps, algo.decay, algo.v_threshold))
+    return neurons.lif_spikes(elite.weights[0] @ observation, algo.time_steps, algo.decay, algo.v_threshold)
 
 
 def make_render_env(env_id: str) -> gym.Env:

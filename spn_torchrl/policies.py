@@ -95,7 +95,8 @@ class PopulationSPN(nn.Module):
     def set_genomes(self, genomes: torch.Tensor) -> None:
         """Compute the effective weights of a genome set once, for every later forward call."""
         w1, w2 = self.effective_weights(genomes.to(self.w1.device))
-        self.w1_eff, self.w2_eff = w1.contiguous(), w2.contiguous()
+        # input-major [P, n, h] and [P, h, m], the layout neurons.spn_dynamics multiplies fastest
+        self.w1_eff, self.w2_eff = w1.transpose(1, 2).contiguous(), w2.transpose(1, 2).contiguous()
 
     def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self.w1_eff is None:
@@ -182,7 +183,7 @@ class TrainableSPN(nn.Module):
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
         x1, x2 = self.masks()
-        w1, w2 = self.spn.w1 * x1, self.spn.w2 * x2
+        w1, w2 = (self.spn.w1 * x1).t().contiguous(), (self.spn.w2 * x2).t().contiguous()
         batch = observation.shape[:-1]
         obs = observation.reshape(-1, observation.shape[-1]).to(w1.dtype)
         b = obs.shape[0]

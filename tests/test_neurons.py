@@ -36,7 +36,7 @@ def test_lif_reset_and_li_leak():
 
 
 def test_state_starts_at_zero_each_call():
-    w1, w2, obs = torch.randn(3, 64, 5), torch.randn(3, 2, 64), torch.randn(3, 5)
+    w1, w2, obs = torch.randn(3, 5, 64), torch.randn(3, 64, 2), torch.randn(3, 5)
     first = spn_dynamics(w1, w2, obs)
     second = spn_dynamics(w1, w2, obs)
     assert torch.equal(first[0], second[0]) and torch.equal(first[1], second[1])
