@@ -22,7 +22,7 @@ import torch
 from mujoco.batch import Batch
 
 from spn_torchrl import ga
-from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.envs import make_batched_env, task_spec
 from spn_torchrl.evaluate import PopulationEvaluator
 from spn_torchrl.mujoco_batch import MujocoBatchEnv, batch_task
 from spn_torchrl.policies import PopulationSPN, init_fixed_weights
@@ -60,7 +60,7 @@ def generation(
     spn = make_spn(env_id)
     gen = torch.Generator().manual_seed(0)
     genomes = ga.initial_population(population, spn.genome_size, 0.01, gen)
-    env = make_population_env(env_id, population, backend=backend, num_workers=threads)
+    env = make_batched_env(env_id, population, backend=backend, num_workers=threads)
     evaluator = PopulationEvaluator(env, spn, episode_steps)
     try:
         t0 = time.perf_counter()
@@ -74,7 +74,7 @@ def generation(
     finally:
         evaluator.close()
     steps = fitness.total_steps + reeval.total_steps
-    physics = getattr(env.base_env, "physics_seconds", None)
+    physics = getattr(env, "physics_seconds", None)
     return steps / seconds, steps, None if physics is None else physics / seconds
 
 

@@ -97,10 +97,15 @@ BACKENDS: dict[str, Callable[..., EnvBase]] = {
 }
 
 
-def make_population_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
-    """One TorchRL env of ``num_envs`` copies of a task, with ``DoubleToFloat``, ``StepCounter`` and
-    ``RewardSum``; discrete actions are indices."""
+def make_batched_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
+    """One TorchRL env of ``num_envs`` copies of a task from ``backend``, without transforms (what
+    :class:`~spn_torchrl.evaluate.PopulationEvaluator` steps); discrete actions are indices."""
     if backend not in BACKENDS:
         raise ConfigError(f"env.backend: unknown backend {backend!r}, expected one of {sorted(BACKENDS)}")
-    base = BACKENDS[backend](env_id, num_envs, num_workers)
+    return BACKENDS[backend](env_id, num_envs, num_workers)
+
+
+def make_population_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
+    """:func:`make_batched_env` with ``DoubleToFloat``, ``StepCounter`` and ``RewardSum``."""
+    base = make_batched_env(env_id, num_envs, backend=backend, num_workers=num_workers)
     return TransformedEnv(base, Compose(DoubleToFloat(), StepCounter(), RewardSum()))

@@ -10,7 +10,7 @@ import torch
 from omegaconf import DictConfig
 from torchrl.envs import EnvBase
 
-from spn_torchrl.envs import TaskSpec, make_population_env
+from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import ConfigError, require
 from spn_torchrl.policies import PopulationSPN
 
@@ -41,8 +41,9 @@ def episode_seed(run_seed: int, generation: int, phase: int) -> int:
 class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
-    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; a call
-    with fewer than P genomes leaves the remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
+    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; it
+    needs no transforms, as returns and steps are counted here. A call with fewer than P genomes leaves the
+    remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
     mask: a backend that honours it (mujoco_batch) does not simulate them, others ignore it.
     """
 
@@ -78,20 +79,17 @@ class PopulationEvaluator:
             spikes += hidden_spikes * active
             if partial:
                 td.set("_step", active.clone())
-            td, td_next = self.env.step_and_maybe_reset(td)
-            nxt = td.get("next")
+            stepped, td = self.env.step_and_maybe_reset(td)
+            nxt = stepped.get("next")
+            # float32 sums in step order, as TorchRL's RewardSum would give
+            returns += nxt.get("reward").reshape(self.size).float() * active
+            steps += active
             finished = nxt.get("done").reshape(self.size) & active
             if finished.any():
-                returns[finished] = nxt.get("episode_reward").reshape(self.size)[finished]
-                steps[finished] = nxt.get("step_count").reshape(self.size)[finished]
                 active &= ~finished
                 partial = masks
                 if not active.any():
                     break
-            td = td_next
-        if active.any():  # an env without its own time limit: cut at max_episode_steps
-            returns[active] = nxt.get("episode_reward").reshape(self.size)[active]
-            steps[active] = nxt.get("step_count").reshape(self.size)[active]
         return Episodes(returns[:count], steps[:count], spikes[:count])
 
     def close(self) -> None:
@@ -109,7 +107,7 @@ class Evaluator(Protocol):
 
 def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> PopulationEvaluator:
     """One batched env of ``algo.population`` copies in this process."""
-    env = make_population_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
+    env = make_batched_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
     return PopulationEvaluator(env, spn, spec.max_episode_steps)
 
 

@@ -24,7 +24,7 @@ import torch
 from spn_torchrl import neurons
 from spn_torchrl.elite import Elite, load_elite
 from spn_torchrl.energy import e_spn, e_spn_masked
-from spn_torchrl.envs import make_population_env
+from spn_torchrl.envs import make_batched_env
 from spn_torchrl.errors import SpnError, require
 from spn_torchrl.evaluate import Episodes, PopulationEvaluator, spike_rate
 from spn_torchrl.policies import mask_density
@@ -45,7 +45,7 @@ class Trace:
 
 def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
     """``episodes`` episodes of the elite (one batched env, the elite repeated), seeded by ``seed``."""
-    env = make_population_env(elite.spec.env_id, episodes, backend=elite.cfg.env.backend)
+    env = make_batched_env(elite.spec.env_id, episodes, backend=elite.cfg.env.backend)
     evaluator = PopulationEvaluator(env, elite.spn, elite.spec.max_episode_steps)
     try:
         return evaluator(elite.genome[None].expand(episodes, -1), seed)

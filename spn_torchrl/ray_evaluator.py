@@ -22,7 +22,7 @@ import ray
 import torch
 from omegaconf import DictConfig
 
-from spn_torchrl.envs import TaskSpec, make_population_env
+from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import EvaluatorError
 from spn_torchrl.evaluate import Episodes, PopulationEvaluator
 from spn_torchrl.policies import PopulationSPN
@@ -67,7 +67,7 @@ class ShardActor:
 
     def __init__(self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, num_workers: int, max_episode_steps: int) -> None:
         torch.set_num_threads(1)
-        env = make_population_env(env_id, capacity, backend=backend, num_workers=num_workers)
+        env = make_batched_env(env_id, capacity, backend=backend, num_workers=num_workers)
         self.evaluator = PopulationEvaluator(env, spn, max_episode_steps)
         self.genome_kind, self.genome_size = spn.genome_kind, spn.genome_size
 
