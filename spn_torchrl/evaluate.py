@@ -58,13 +58,12 @@ class PopulationEvaluator:
         count = genomes.shape[0]
         if not 0 < count <= self.size:
             raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
-        if count < self.size:
-            genomes = torch.cat([genomes, genomes[:1].expand(self.size - count, -1)])
         self.spn.set_genomes(genomes)
         active = torch.arange(self.size) < count
         returns = torch.zeros(self.size)
         steps = torch.zeros(self.size, dtype=torch.long)
-        spikes = torch.zeros(self.size)
+        spikes = torch.zeros(count)
+        idle = self.size - count
 
         # a one-process env takes TorchRL's per-slot "_step" mask (mujoco_batch skips idle slots, GymWrapper
         # ignores it); a ParallelEnv only takes masks of whole workers, so it gets none
@@ -74,9 +73,11 @@ class PopulationEvaluator:
         td = self.env.reset()
         for _ in range(self.max_episode_steps):
             # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
-            action, hidden_spikes = self.spn(td.get("observation").reshape(self.size, -1))
+            action, hidden_spikes = self.spn(td.get("observation").reshape(self.size, -1)[:count])
+            spikes += hidden_spikes * active[:count]
+            if idle:  # the idle slots repeat the first action, a valid one that is never counted
+                action = torch.cat([action, action[:1].expand(idle, *action.shape[1:])])
             td.set("action", action.reshape(*self.shape, *action.shape[1:]))
-            spikes += hidden_spikes * active
             if partial:
                 td.set("_step", active.clone())
             stepped, td = self.env.step_and_maybe_reset(td)
@@ -90,7 +91,7 @@ class PopulationEvaluator:
                 partial = masks
                 if not active.any():
                     break
-        return Episodes(returns[:count], steps[:count], spikes[:count])
+        return Episodes(returns[:count], steps[:count], spikes)
 
     def close(self) -> None:
         if not self.env.is_closed:
