@@ -1,26 +1,24 @@
 """A TorchRL env of P copies of a Gymnasium v5 MuJoCo task, stepped in one ``mujoco.batch.Batch`` call.
 
 Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup: observation, reward
-terms, reset distribution and seeding (sub-env i seeded with s + i draws what ``gym.make(id).reset(seed=s+i)``
-draws), frame skip and the 1000-step time limit (truncation). A ``"_step"`` mask in the input steps only
-the selected simulations, so idle slots cost no physics.
+terms, reset distribution and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and
+masks as :class:`~spn_torchrl.batch_env.BatchEnv`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import time
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 import torch
 from gymnasium.envs.mujoco.mujoco_env import expand_model_path
 from mujoco.batch import Batch
-from tensordict import TensorDict, TensorDictBase
-from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.data import Bounded
 from torchrl.envs import EnvBase
 
+from spn_torchrl.batch_env import BatchEnv
 from spn_torchrl.errors import ConfigError
 
 
@@ -57,47 +55,32 @@ def batch_task(env_id: str) -> BatchTask:
     return BATCH_TASKS[env_id]
 
 
-class MujocoBatchEnv(EnvBase):
+class MujocoBatchEnv(BatchEnv):
     """P simulations of one task on ``num_threads`` MuJoCo threads, as a TorchRL env of batch size [P]."""
 
     def __init__(self, env_id: str, num_envs: int, num_threads: int = 1) -> None:
         task = batch_task(env_id)
-        super().__init__(batch_size=torch.Size([num_envs]))
         self.env_id = env_id
         self.task = task
         self.model = mujoco.MjModel.from_xml_path(expand_model_path(task.xml))
         m = self.model
+        p = num_envs
+        low = torch.as_tensor(m.actuator_ctrlrange[:, 0], dtype=torch.float32)
+        high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
+        action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
+        super().__init__(num_envs, self._obs_size(), action_spec, task.max_episode_steps)
         # a persistent batch keeps each simulation's MjData, whose contact forces HumanoidStandup needs
         self.batch = Batch(m, num_envs, nthread=num_threads, persistent=task.standup)
         self.qpos, self.qvel, self.ctrl = self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl")
         self.dt = m.opt.timestep * task.frame_skip
         self.init_qpos = m.qpos0.copy()
         self.init_qvel = np.zeros(m.nv)
-        p = num_envs
         if task.standup:
             self.cinert, self.cvel = self.batch.bind("cinert"), self.batch.bind("cvel")
             self.qfrc_actuator = self.batch.bind("qfrc_actuator")
             self.cfrc_ext = np.zeros((p, m.nbody, 6))
             self._scratch = mujoco.MjData(m)
-        n_obs = self._obs_size()
-        self._obs = np.zeros((p, n_obs))
         self._x_before = np.zeros(p)
-        self._reward = np.zeros(p)
-        self._elapsed = np.zeros(p, dtype=np.int64)
-        self._rngs = [np.random.Generator(np.random.PCG64()) for _ in range(p)]
-        self._all = np.arange(p)
-        low = torch.as_tensor(m.actuator_ctrlrange[:, 0], dtype=torch.float32)
-        high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
-        self.action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
-        self.observation_spec = Composite(
-            observation=Unbounded(shape=(p, n_obs), dtype=torch.float32), shape=(p,)
-        )
-        self.reward_spec = Unbounded(shape=(p, 1), dtype=torch.float32)
-        self.done_spec = Composite(
-            {key: Categorical(2, shape=(p, 1), dtype=torch.bool) for key in ("done", "terminated", "truncated")},
-            shape=(p,),
-        )
-        self._false = torch.zeros(p, 1, dtype=torch.bool)
         self.physics_seconds = 0.0  # wall time inside the batched physics call (benchmarks read it)
 
     def _obs_size(self) -> int:
@@ -133,14 +116,7 @@ class MujocoBatchEnv(EnvBase):
             mujoco.mj_rnePostConstraint(self.model, data)
             self.cfrc_ext[sim] = data.cfrc_ext
 
-    def _set_seed(self, seed: int | None) -> None:
-        """Seed sub-env i with ``seed + i`` and reset, as TorchRL's GymWrapper does on a vector env."""
-        if seed is None:
-            return
-        self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed + i))) for i in range(len(self._all))]
-        self._reset_sims(None)
-
-    def _reset_sims(self, ids: np.ndarray | None) -> None:
+    def _reset_slots(self, ids: np.ndarray | None) -> None:
         rows = self._all if ids is None else ids
         m, task = self.model, self.task
         scale = task.reset_noise_scale
@@ -155,72 +131,28 @@ class MujocoBatchEnv(EnvBase):
         self.batch.forward(ids)
         if task.standup:
             self.cfrc_ext[rows] = 0.0  # mj_resetData clears it and mj_forward does not compute it
-        self._elapsed[rows] = 0
         self._write_obs(ids)
 
-    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
-        reset = None if tensordict is None else tensordict.get("_reset", None)
-        ids = None
-        if reset is not None:
-            mask = reset.reshape(-1).numpy()
-            ids = None if mask.all() else np.flatnonzero(mask)
-        if ids is None or len(ids):
-            self._reset_sims(ids)
-        return TensorDict(
-            {
-                "observation": torch.from_numpy(self._obs).float(),
-                "done": self._false.clone(),
-                "terminated": self._false.clone(),
-                "truncated": self._false.clone(),
-            },
-            batch_size=self.batch_size,
-        )
-
-    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        action = tensordict.get("action")
-        mask = tensordict.get("_step", None)
-        ids = None
-        if mask is not None:
-            mask = mask.reshape(-1).numpy()
-            ids = None if mask.all() else np.flatnonzero(mask)
+    def _advance(self, ids: np.ndarray | None, action: np.ndarray) -> None:
         rows = slice(None) if ids is None else ids
         task = self.task
-        act = action.detach().numpy()
-        if ids is None:
-            self.ctrl[:] = act
-        else:
-            act = act[ids]
-            self.ctrl[ids] = act
+        self.ctrl[rows] = action
         if not task.standup:
             self._x_before[rows] = self.qpos[rows, 0]
         t0 = time.perf_counter()
         self.batch.step(ids, nstep=task.frame_skip)
         self.physics_seconds += time.perf_counter() - t0
-        # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
-        ctrl_cost = task.ctrl_cost_weight * np.square(act).sum(-1)
         if task.standup:
             self._contact_forces(ids)
             uph = self.qpos[rows, 2] / self.model.opt.timestep
             quad_ctrl = task.ctrl_cost_weight * np.square(self.ctrl[rows]).sum(-1)
             impact = np.minimum(IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[rows]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX)
-            reward = uph - quad_ctrl - impact + 1
+            self._reward[rows] = uph - quad_ctrl - impact + 1
         else:
-            reward = (self.qpos[rows, 0] - self._x_before[rows]) / self.dt - ctrl_cost
-        self._reward[:] = 0.0
-        self._reward[rows] = reward
-        self._elapsed[rows] += 1
+            # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
+            ctrl_cost = task.ctrl_cost_weight * np.square(action).sum(-1)
+            self._reward[rows] = (self.qpos[rows, 0] - self._x_before[rows]) / self.dt - ctrl_cost
         self._write_obs(ids)
-        truncated = torch.from_numpy(self._elapsed >= task.max_episode_steps).unsqueeze(-1)
-        return TensorDict(
-            {
-                "observation": torch.from_numpy(self._obs).float(),
-                "reward": torch.from_numpy(self._reward).float().unsqueeze(-1),
-                "done": truncated,
-                "terminated": self._false.clone(),
-                "truncated": truncated.clone(),
-            },
-            batch_size=self.batch_size,
-        )
 
 
 def mujoco_batch_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:

@@ -1,0 +1,103 @@
+"""The common part of the batched TorchRL envs that replicate a Gymnasium task in one process.
+
+P slots, each with its own seeded generator (slot i seeded with s + i draws what ``gym.make(id).reset(seed=s+i)``
+draws, as TorchRL's GymWrapper seeds a vector env), TorchRL's ``"_step"`` and ``"_reset"`` masks (idle slots
+cost nothing), an elapsed-step counter with the task's time limit (truncation), and the TensorDict plumbing.
+A subclass simulates: :meth:`_reset_slots` and :meth:`_advance`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Categorical, Composite, TensorSpec, Unbounded
+from torchrl.envs import EnvBase
+
+
+class BatchEnv(EnvBase):
+    """P copies of a task stepped together; observations float32 [P, n], rewards [P, 1]."""
+
+    def __init__(self, num_envs: int, n_obs: int, action_spec: TensorSpec, max_episode_steps: int) -> None:
+        super().__init__(batch_size=torch.Size([num_envs]))
+        p = num_envs
+        self.max_episode_steps = max_episode_steps
+        self._obs = np.zeros((p, n_obs))
+        self._reward = np.zeros(p)
+        self._terminated = np.zeros(p, dtype=bool)
+        self._elapsed = np.zeros(p, dtype=np.int64)
+        self._rngs = [np.random.Generator(np.random.PCG64()) for _ in range(p)]
+        self._all = np.arange(p)
+        self.action_spec = action_spec
+        self.observation_spec = Composite(observation=Unbounded(shape=(p, n_obs), dtype=torch.float32), shape=(p,))
+        self.reward_spec = Unbounded(shape=(p, 1), dtype=torch.float32)
+        self.done_spec = Composite(
+            {key: Categorical(2, shape=(p, 1), dtype=torch.bool) for key in ("done", "terminated", "truncated")},
+            shape=(p,),
+        )
+        self._false = torch.zeros(p, 1, dtype=torch.bool)
+
+    def _reset_slots(self, ids: np.ndarray | None) -> None:
+        """Draw the initial state of slots ``ids`` (None: all) from their generators and write their
+        observations into ``self._obs``."""
+        raise NotImplementedError
+
+    def _advance(self, ids: np.ndarray | None, action: np.ndarray) -> None:
+        """Step slots ``ids`` (None: all) with their actions (rows of ``action`` for those slots only) and
+        write their observations, rewards and terminations into ``self._obs``, ``self._reward`` and
+        ``self._terminated``."""
+        raise NotImplementedError
+
+    def _set_seed(self, seed: int | None) -> None:
+        """Seed slot i with ``seed + i`` and reset, as TorchRL's GymWrapper does on a vector env."""
+        if seed is None:
+            return
+        self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed + i))) for i in self._all]
+        self._restart(None)
+
+    def _restart(self, ids: np.ndarray | None) -> None:
+        rows = slice(None) if ids is None else ids
+        self._elapsed[rows] = 0
+        self._terminated[rows] = False
+        self._reset_slots(ids)
+
+    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+        ids = _selected(None if tensordict is None else tensordict.get("_reset", None))
+        if ids is None or len(ids):
+            self._restart(ids)
+        return TensorDict(
+            {
+                "observation": torch.from_numpy(self._obs).float(),
+                "done": self._false.clone(),
+                "terminated": self._false.clone(),
+                "truncated": self._false.clone(),
+            },
+            batch_size=self.batch_size,
+        )
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        ids = _selected(tensordict.get("_step", None))
+        action = tensordict.get("action").detach().numpy()
+        self._reward[:] = 0.0
+        self._advance(ids, action if ids is None else action[ids])
+        self._elapsed[slice(None) if ids is None else ids] += 1
+        terminated = torch.from_numpy(self._terminated.copy()).unsqueeze(-1)
+        truncated = torch.from_numpy(self._elapsed >= self.max_episode_steps).unsqueeze(-1)  # as TimeLimit
+        return TensorDict(
+            {
+                "observation": torch.from_numpy(self._obs).float(),
+                "reward": torch.from_numpy(self._reward).float().unsqueeze(-1),
+                "done": terminated | truncated,
+                "terminated": terminated,
+                "truncated": truncated,
+            },
+            batch_size=self.batch_size,
+        )
+
+
+def _selected(mask: torch.Tensor | None) -> np.ndarray | None:
+    """The slot indices a TorchRL ``_step``/``_reset`` mask selects; None for all (or no mask)."""
+    if mask is None:
+        return None
+    mask = mask.reshape(-1).numpy()
+    return None if mask.all() else np.flatnonzero(mask)
