@@ -19,6 +19,7 @@ from torchrl.envs import (
     TransformedEnv,
 )
 
+from spn_torchrl.cartpole_batch import cartpole_batch_backend
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.mujoco_batch import mujoco_batch_backend
 
@@ -94,6 +95,7 @@ def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBa
 BACKENDS: dict[str, Callable[..., EnvBase]] = {
     "gymnasium": gymnasium_backend,
     "mujoco_batch": mujoco_batch_backend,  # HalfCheetah, Swimmer, HumanoidStandup v5 only
+    "cartpole_batch": cartpole_batch_backend,  # CartPole-v1 only
 }
 
 
