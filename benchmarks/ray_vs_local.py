@@ -1,6 +1,6 @@
 """One GA generation (population rollout + elite re-evaluation) on the local evaluator and on Ray actors.
 
-    python benchmarks/ray_vs_local.py --env halfcheetah --population 200 --actors 2
+    python benchmarks/ray_vs_local.py --env halfcheetah --population 200 --actors 2 [--actor-workers 1]
 
 Prints start-up and generation wall times of both, the overhead Ray adds, whether every episode is
 identical, and the payload bytes the Ray evaluator moved.
@@ -63,6 +63,9 @@ def main() -> None:
     parser.add_argument("--population", type=int, default=200)
     parser.add_argument("--actors", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--actor-workers", type=int, default=None, help="env.num_workers of each Ray actor (default: the env config's)"
+    )
     args = parser.parse_args()
 
     register_configs()
@@ -71,7 +74,13 @@ def main() -> None:
         local_cfg = compose(config_name="config", overrides=overrides)
         ray_cfg = compose(
             config_name="config",
-            overrides=[*overrides, "evaluator=ray", f"evaluator.num_actors={args.actors}", f"evaluator.num_cpus={args.actors}"],
+            overrides=[
+                *overrides,
+                "evaluator=ray",
+                f"evaluator.num_actors={args.actors}",
+                f"evaluator.num_cpus={args.actors}",
+                *([f"env.num_workers={args.actor_workers}"] if args.actor_workers else []),
+            ],
         )
     validate(ray_cfg)
     torch.set_num_threads(1)
