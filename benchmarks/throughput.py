@@ -16,7 +16,6 @@ import resource
 import time
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 import torch
 from mujoco.batch import Batch

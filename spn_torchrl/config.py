@@ -5,7 +5,7 @@ Defaults are the paper's (SPEC.md); options that change the algorithm are off by
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore

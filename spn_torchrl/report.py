@@ -19,7 +19,7 @@ from spn_torchrl import energy
 from spn_torchrl.energy import sig
 from spn_torchrl.envs import task_spec
 from spn_torchrl.figures import task_figure
-from spn_torchrl.runs import RunRecord, find_runs, group_runs, last_value, mean_std, pooled
+from spn_torchrl.runs import RunRecord, find_runs, group_runs, last_value, pooled
 
 PPO_LEVEL_ALGO = "dpn_ppo"
 PAPER_BUDGET = {"generations": 100, "population": 200, "elite_candidates": 10, "elite_episodes": 10}
