@@ -27,6 +27,16 @@ class Episodes:
     def total_steps(self) -> int:
         return int(self.steps.sum())
 
+    def part(self, start: int, stop: int) -> Episodes:
+        """The episodes of individuals ``start`` to ``stop - 1``."""
+        return Episodes(self.returns[start:stop], self.steps[start:stop], self.spikes[start:stop])
+
+
+def evaluation_slots(algo: DictConfig) -> int:
+    """Env slots a GA run needs: its population and the previous generation's elite re-evaluation, which
+    run in the same rollout."""
+    return algo.population + algo.elite_candidates * algo.elite_episodes
+
 
 def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_steps: int) -> float:
     """Hidden spikes per neuron per simulation step over episodes (the rate the energy model uses)."""
@@ -107,8 +117,8 @@ class Evaluator(Protocol):
 
 
 def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> PopulationEvaluator:
-    """One batched env of ``algo.population`` copies in this process."""
-    env = make_batched_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend, num_workers=cfg.env.num_workers)
+    """One batched env of :func:`evaluation_slots` copies in this process."""
+    env = make_batched_env(spec.env_id, evaluation_slots(cfg.algo), backend=cfg.env.backend, num_workers=cfg.env.num_workers)
     return PopulationEvaluator(env, spn, spec.max_episode_steps)
 
 

@@ -13,13 +13,13 @@ from omegaconf import DictConfig, OmegaConf
 from spn_torchrl import checkpoint, ga
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import episode_seed, make_evaluator, spike_rate
+from spn_torchrl.evaluate import Episodes, episode_seed, make_evaluator, spike_rate
 from spn_torchrl.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
 
 log = logging.getLogger("spn_torchrl")
 
-FORMAT = "spn_torchrl.ga/1"
+FORMAT = "spn_torchrl.ga/2"  # /2: the pending re-evaluation is part of the state
 
 
 def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
@@ -36,7 +36,12 @@ def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
 
 
 def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
-    """Run (or resume) the GA of SPEC.md; returns the last generation's metrics."""
+    """Run (or resume) the GA of SPEC.md; returns the last generation's metrics.
+
+    The elite re-evaluation of generation g does not change selection (SPEC.md), so it runs in the same
+    batched rollout as the population of generation g+1 (one env of N + k x episodes slots), and the last
+    generation's in a rollout of its own. Generation g's row is written once its re-evaluation is done.
+    """
     algo = cfg.algo
     spec = task_spec(cfg.env.id)
     meta = run_meta(cfg, spec)
@@ -51,7 +56,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         generator.set_state(state["rng"])
         population, start = state["population"], state["generation"]
         elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
-        run_name, wandb_id = state["run_name"], state["wandb_id"]
+        run_name, wandb_id, pending = state["run_name"], state["wandb_id"], state["pending"]
         log.info("resuming %s after generation %d", run_dir, start)
     else:
         if cfg.resume:
@@ -61,80 +66,113 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         dim = genome_size(w1, w2)
         center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
         population = ga.initial_population(algo.population, dim, algo.sigma, generator, center)
-        start, elites, total_steps, wall, wandb_id = 0, [], 0, 0.0, None
+        start, elites, total_steps, wall, wandb_id, pending = 0, [], 0, 0.0, None, None
 
     spn = spn_from_config(cfg.algo, spec, w1, w2)
-    progress = Progress(run_dir / "progress.csv", keep_rows=start)
+    progress = Progress(run_dir / "progress.csv", keep_rows=len(elites))
     evaluator = make_evaluator(cfg, spec, spn)
     logger = None
-    k, episodes = algo.elite_candidates, algo.elite_episodes
+    k, episodes, n = algo.elite_candidates, algo.elite_episodes, algo.population
     row: dict[str, Any] = {}
     failed = True
+    since_row = {"steps": 0, "seconds": 0.0}
+
+    def finish(pending: dict[str, Any], reeval: Episodes) -> None:
+        """Pick the elite of a pending generation from its re-evaluation; write its row."""
+        nonlocal total_steps, row
+        candidates, fitness = pending["candidates"], pending["fitness"]
+        elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
+        elite = pending["population"][elite_index]
+        elites.append(elite.clone())
+        slot = int((candidates == elite_index).nonzero()[0]) * episodes
+        mask1, mask2 = spn.masks(elite[None])
+        steps = pending["steps"] + reeval.total_steps
+        total_steps += steps
+        generation = pending["generation"]
+        row = {
+            "generation": generation,
+            "eval_return": elite_return,
+            "best_fitness": float(fitness.max()),
+            "mean_fitness": float(fitness.mean()),
+            "env_steps": steps,
+            "total_env_steps": total_steps,
+            "wall_time_s": round(wall, 3),
+            "steps_per_s": round(since_row["steps"] / max(since_row["seconds"], 1e-9), 1),
+            "mask_density": mask_density(mask1, mask2),
+            "spike_rate": spike_rate(
+                reeval.spikes[slot : slot + episodes], reeval.steps[slot : slot + episodes], algo.hidden, algo.time_steps
+            ),
+            "synapses_l1": int(mask1.sum()),
+            "synapses_l2": int(mask2.sum()),
+            "elite_index": elite_index,
+        }
+        since_row.update(steps=0, seconds=0.0)
+        progress.append(row)
+        if logger is not None:
+            logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
+        log.info(
+            "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+            generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
+            total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
+        )
+
+    def save(generation: int) -> None:
+        checkpoint.save(
+            {
+                "meta": meta,
+                "config": OmegaConf.to_yaml(cfg, resolve=True),
+                "run_name": run_name,
+                "wandb_id": wandb_id,
+                "generation": generation,
+                "population": population,
+                "pending": pending,
+                "rng": generator.get_state(),
+                "w1": w1,
+                "w2": w2,
+                "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
+                "total_env_steps": total_steps,
+                "wall_time_s": wall,
+            },
+            run_dir,
+        )
+
+    def rollout(genomes: torch.Tensor, seed: int) -> Episodes:
+        nonlocal wall
+        t0 = time.perf_counter()
+        result = evaluator(genomes, seed)
+        seconds = time.perf_counter() - t0
+        wall += seconds
+        since_row["steps"] += result.total_steps
+        since_row["seconds"] += seconds
+        return result
+
     try:
         logger = make_logger(cfg, run_dir, run_name, wandb_id)
         log.info("run %s in %s", run_name, run_dir)
         wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
-            t0 = time.perf_counter()
-            fitness_eps = evaluator(population, episode_seed(cfg.seed, generation, 0))
+            reeval = [] if pending is None else [pending["population"][pending["candidates"]].repeat_interleave(episodes, 0)]
+            result = rollout(torch.cat([population, *reeval]), episode_seed(cfg.seed, generation, 0))
+            fitness_eps = result.part(0, n)
+            if pending is not None:
+                finish(pending, result.part(n, result.returns.numel()))
             fitness = fitness_eps.returns
-            candidates = ga.elite_candidates(fitness, k)
-            reeval = evaluator(population[candidates].repeat_interleave(episodes, 0), episode_seed(cfg.seed, generation, 1))
-            elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
-            elite = population[elite_index]
-            elites.append(elite.clone())
-            slot = int((candidates == elite_index).nonzero()[0]) * episodes
-            mask1, mask2 = spn.masks(elite[None])
+            pending = {
+                "generation": generation,
+                "population": population,
+                "fitness": fitness,
+                "steps": fitness_eps.total_steps,
+                "candidates": ga.elite_candidates(fitness, k),
+            }
             population = ga.next_generation(
                 population, fitness, sigma=algo.sigma, truncation=algo.truncation, generator=generator, elitism=algo.elitism
             )
-            seconds = time.perf_counter() - t0
-            steps = fitness_eps.total_steps + reeval.total_steps
-            total_steps += steps
-            wall += seconds
-            row = {
-                "generation": generation,
-                "eval_return": elite_return,
-                "best_fitness": float(fitness.max()),
-                "mean_fitness": float(fitness.mean()),
-                "env_steps": steps,
-                "total_env_steps": total_steps,
-                "wall_time_s": round(wall, 3),
-                "steps_per_s": round(steps / seconds, 1),
-                "mask_density": mask_density(mask1, mask2),
-                "spike_rate": spike_rate(
-                    reeval.spikes[slot : slot + episodes], reeval.steps[slot : slot + episodes], algo.hidden, algo.time_steps
-                ),
-                "synapses_l1": int(mask1.sum()),
-                "synapses_l2": int(mask2.sum()),
-                "elite_index": elite_index,
-            }
-            progress.append(row)
-            if logger is not None:
-                logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
-            checkpoint.save(
-                {
-                    "meta": meta,
-                    "config": OmegaConf.to_yaml(cfg, resolve=True),
-                    "run_name": run_name,
-                    "wandb_id": wandb_id,
-                    "generation": generation,
-                    "population": population,
-                    "fitness": fitness,
-                    "rng": generator.get_state(),
-                    "w1": w1,
-                    "w2": w2,
-                    "elites": torch.stack(elites),
-                    "total_env_steps": total_steps,
-                    "wall_time_s": wall,
-                },
-                run_dir,
-            )
-            log.info(
-                "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
-                generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
-                total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
-            )
+            save(generation)
+        if pending is not None:  # the last generation's re-evaluation, alone
+            genomes = pending["population"][pending["candidates"]].repeat_interleave(episodes, 0)
+            finish(pending, rollout(genomes, episode_seed(cfg.seed, pending["generation"], 1)))
+            pending = None
+            save(algo.generations)
         failed = False
     finally:
         try:

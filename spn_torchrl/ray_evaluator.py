@@ -24,7 +24,7 @@ from omegaconf import DictConfig
 
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import EvaluatorError
-from spn_torchrl.evaluate import Episodes, PopulationEvaluator
+from spn_torchrl.evaluate import Episodes, PopulationEvaluator, evaluation_slots
 from spn_torchrl.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
@@ -164,7 +164,7 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
             f"evaluator.num_actors={ev.num_actors} x evaluator.num_cpus_per_actor={ev.num_cpus_per_actor} CPUs do not fit "
             f"in the local Ray cluster's {cpus:g} CPUs: lower one of them or set evaluator.num_cpus"
         )
-    population = cfg.algo.population
+    population = evaluation_slots(cfg.algo)
     capacities = [stop - start for start, stop in shard_bounds(population, ev.num_actors)]
     options = {"num_cpus": ev.num_cpus_per_actor, "max_restarts": ev.max_restarts, "max_task_retries": ev.max_restarts}
     # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts;
