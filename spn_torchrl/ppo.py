@@ -304,7 +304,8 @@ def _mask_density(actor: ProbabilisticActor) -> float:
     """Fraction of existing synapses of a trainable SPN (NaN for the DPN)."""
     for module in actor.modules():
         if isinstance(module, TrainableSPN):
-            return mask_density(*module.masks())
+            with torch.no_grad():
+                return mask_density(*module.masks())
     return math.nan
 
 
