@@ -54,7 +54,7 @@ class PopulationEvaluator:
     The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; it
     needs no transforms, as returns and steps are counted here. A call with fewer than P genomes leaves the
     remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
-    mask: a backend that honours it (mujoco_batch) does not simulate them, others ignore it.
+    mask: a backend that honours it (mujoco_batch, cartpole_batch) does not simulate them, others ignore it.
     """
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
@@ -75,7 +75,7 @@ class PopulationEvaluator:
         spikes = torch.zeros(count)
         idle = self.size - count
 
-        # a one-process env takes TorchRL's per-slot "_step" mask (mujoco_batch skips idle slots, GymWrapper
+        # a one-process env takes TorchRL's per-slot "_step" mask (the batch backends skip idle slots, GymWrapper
         # ignores it); a ParallelEnv only takes masks of whole workers, so it gets none
         masks = len(self.shape) == 1
         partial = masks and count < self.size
