@@ -32,7 +32,7 @@ def generation(evaluator, parents: torch.Tensor, k: int, episodes: int, seed: in
     fitness = evaluator(parents, episode_seed(seed, 1, 0)).returns
     candidates = ga.elite_candidates(fitness, k)
     children = ga.next_generation(parents, fitness, sigma=sigma, truncation=0.25, generator=torch.Generator().manual_seed(seed))
-    genomes = torch.cat([children, parents[candidates].repeat_interleave(episodes, 0)])
+    genomes = torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)])
     before = {key: getattr(evaluator, key, 0) for key in ("bytes_sent", "bytes_received")}
     t0 = time.perf_counter()
     result = evaluator(genomes, episode_seed(seed, 2, 0))

@@ -71,7 +71,7 @@ def generation(
         if hasattr(env, "physics_seconds"):
             env.physics_seconds = 0.0
         t0 = time.perf_counter()
-        result = evaluator(torch.cat([children, parents[candidates].repeat_interleave(episodes, 0)]), seed=2)
+        result = evaluator(torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)]), seed=2)
         ga.pick_elite(candidates, result.part(population, population + k * episodes).returns.view(k, episodes))
         fitness = result.part(0, population).returns
         ga.elite_candidates(fitness, k)

@@ -56,9 +56,8 @@ class BatchEnv(EnvBase):
         self._restart(None)
 
     def _restart(self, ids: np.ndarray | None) -> None:
-        rows = slice(None) if ids is None else ids
-        self._elapsed[rows] = 0
-        self._terminated[rows] = False
+        self._elapsed[rows(ids)] = 0
+        self._terminated[rows(ids)] = False
         self._reset_slots(ids)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
@@ -79,8 +78,8 @@ class BatchEnv(EnvBase):
         ids = _selected(tensordict.get("_step", None))
         action = tensordict.get("action").detach().numpy()
         self._reward[:] = 0.0
-        self._advance(ids, action if ids is None else action[ids])
-        self._elapsed[slice(None) if ids is None else ids] += 1
+        self._advance(ids, action[rows(ids)])
+        self._elapsed[rows(ids)] += 1
         terminated = torch.from_numpy(self._terminated.copy()).unsqueeze(-1)
         truncated = torch.from_numpy(self._elapsed >= self.max_episode_steps).unsqueeze(-1)  # as TimeLimit
         return TensorDict(
@@ -93,6 +92,11 @@ class BatchEnv(EnvBase):
             },
             batch_size=self.batch_size,
         )
+
+
+def rows(ids: np.ndarray | None) -> slice | np.ndarray:
+    """An index of the slots ``ids`` (None: all) into arrays with one row per slot."""
+    return slice(None) if ids is None else ids
 
 
 def _selected(mask: torch.Tensor | None) -> np.ndarray | None:

@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torchrl.data import Categorical
 
-from spn_torchrl.batch_env import BatchEnv
+from spn_torchrl.batch_env import BatchEnv, rows
 from spn_torchrl.errors import ConfigError
 
 ENV_ID = "CartPole-v1"
@@ -41,13 +41,13 @@ class CartPoleBatchEnv(BatchEnv):
         self._fallen = np.zeros(num_envs, dtype=bool)  # terminated once since the reset (no more reward)
 
     def _reset_slots(self, ids: np.ndarray | None) -> None:
-        self._fallen[slice(None) if ids is None else ids] = False
-        for slot in self._all if ids is None else ids:
+        self._fallen[rows(ids)] = False
+        for slot in self._all[rows(ids)]:
             self._obs[slot] = self._rngs[slot].uniform(low=-RESET_BOUND, high=RESET_BOUND, size=(4,))
 
     def _advance(self, ids: np.ndarray | None, action: np.ndarray) -> None:
-        rows = slice(None) if ids is None else ids
-        x, x_dot, theta, theta_dot = self._obs[rows].T
+        slots = rows(ids)
+        x, x_dot, theta, theta_dot = self._obs[slots].T
         force = np.where(action == 1, FORCE_MAG, -FORCE_MAG)
         costheta = np.cos(theta)
         sintheta = np.sin(theta)
@@ -58,11 +58,11 @@ class CartPoleBatchEnv(BatchEnv):
         xacc = temp - POLEMASS_LENGTH * thetaacc * costheta / TOTAL_MASS
         x, x_dot = x + TAU * x_dot, x_dot + TAU * xacc
         theta, theta_dot = theta + TAU * theta_dot, theta_dot + TAU * thetaacc
-        self._obs[rows] = np.stack([x, x_dot, theta, theta_dot], axis=1)
+        self._obs[slots] = np.stack([x, x_dot, theta, theta_dot], axis=1)
         terminated = (x < -X_THRESHOLD) | (x > X_THRESHOLD) | (theta < -THETA_THRESHOLD) | (theta > THETA_THRESHOLD)
-        self._reward[rows] = np.where(terminated & self._fallen[rows], 0.0, 1.0)
-        self._terminated[rows] = terminated
-        self._fallen[rows] |= terminated
+        self._reward[slots] = np.where(terminated & self._fallen[slots], 0.0, 1.0)
+        self._terminated[slots] = terminated
+        self._fallen[slots] |= terminated
 
 
 def cartpole_batch_backend(env_id: str, num_envs: int, num_workers: int = 1) -> CartPoleBatchEnv:

@@ -75,11 +75,17 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     k, episodes, n = algo.elite_candidates, algo.elite_episodes, algo.population
     row: dict[str, Any] = {}
     failed = True
-    since_row = {"steps": 0, "seconds": 0.0}
+    started = time.perf_counter()
+    since_row = {"steps": 0, "wall": wall}  # env steps run and wall time at the previous row
+
+    def elapsed() -> float:
+        """Wall time of the run so far, earlier segments of a resumed run included."""
+        return wall + time.perf_counter() - started
 
     def finish(pending: dict[str, Any], reeval: Episodes) -> None:
         """Pick the elite of a pending generation from its re-evaluation; write its row."""
         nonlocal total_steps, row
+        now = elapsed()
         candidates, fitness = pending["candidates"], pending["fitness"]
         elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
         elite = pending["population"][elite_index]
@@ -96,8 +102,8 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             "mean_fitness": float(fitness.mean()),
             "env_steps": steps,
             "total_env_steps": total_steps,
-            "wall_time_s": round(wall, 3),
-            "steps_per_s": round(since_row["steps"] / max(since_row["seconds"], 1e-9), 1),
+            "wall_time_s": round(now, 3),
+            "steps_per_s": round(since_row["steps"] / max(now - since_row["wall"], 1e-9), 1),
             "mask_density": mask_density(mask1, mask2),
             "spike_rate": spike_rate(
                 reeval.spikes[slot : slot + episodes], reeval.steps[slot : slot + episodes], algo.hidden, algo.time_steps
@@ -106,7 +112,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             "synapses_l2": int(mask2.sum()),
             "elite_index": elite_index,
         }
-        since_row.update(steps=0, seconds=0.0)
+        since_row.update(steps=0, wall=now)
         progress.append(row)
         if logger is not None:
             logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
@@ -131,19 +137,14 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "w2": w2,
                 "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
                 "total_env_steps": total_steps,
-                "wall_time_s": wall,
+                "wall_time_s": elapsed(),
             },
             run_dir,
         )
 
     def rollout(genomes: torch.Tensor, seed: int) -> Episodes:
-        nonlocal wall
-        t0 = time.perf_counter()
         result = evaluator(genomes, seed)
-        seconds = time.perf_counter() - t0
-        wall += seconds
         since_row["steps"] += result.total_steps
-        since_row["seconds"] += seconds
         return result
 
     try:
@@ -151,7 +152,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         log.info("run %s in %s", run_name, run_dir)
         wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
-            reeval = [] if pending is None else [pending["population"][pending["candidates"]].repeat_interleave(episodes, 0)]
+            reeval = [] if pending is None else [ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)]
             result = rollout(torch.cat([population, *reeval]), episode_seed(cfg.seed, generation, 0))
             fitness_eps = result.part(0, n)
             if pending is not None:
@@ -169,7 +170,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             )
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
-            genomes = pending["population"][pending["candidates"]].repeat_interleave(episodes, 0)
+            genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
             finish(pending, rollout(genomes, episode_seed(cfg.seed, pending["generation"], 1)))
             pending = None
             save(algo.generations)

@@ -58,6 +58,11 @@ def elite_candidates(fitness: torch.Tensor, k: int) -> torch.Tensor:
     return ranking(fitness)[:k]
 
 
+def reevaluation_genomes(population: torch.Tensor, candidates: torch.Tensor, episodes: int) -> torch.Tensor:
+    """The genomes of the elite re-evaluation: each candidate ``episodes`` times in a row, [k * E, D]."""
+    return population[candidates].repeat_interleave(episodes, 0)
+
+
 def pick_elite(candidates: torch.Tensor, episode_returns: torch.Tensor) -> tuple[int, float]:
     """The candidate with the best mean over its re-evaluation episodes [k, E]: (its index, its mean)."""
     means = episode_returns.mean(dim=1)

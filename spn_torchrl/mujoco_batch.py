@@ -18,7 +18,7 @@ from mujoco.batch import Batch
 from torchrl.data import Bounded
 from torchrl.envs import EnvBase
 
-from spn_torchrl.batch_env import BatchEnv
+from spn_torchrl.batch_env import BatchEnv, rows
 from spn_torchrl.errors import ConfigError
 
 
@@ -92,16 +92,16 @@ class MujocoBatchEnv(BatchEnv):
 
     def _write_obs(self, ids: np.ndarray | None) -> None:
         """Gymnasium's ``_get_obs`` for the rows ``ids`` (None: all) into the observation buffer."""
-        rows = slice(None) if ids is None else ids
+        slots = rows(ids)
         m, task = self.model, self.task
         k = task.skipped_qpos
-        parts = [self.qpos[rows, k:], self.qvel[rows]]
+        parts = [self.qpos[slots, k:], self.qvel[slots]]
         if task.standup:
             parts += [
-                self.cinert[rows, 1:].reshape(-1 if ids is None else len(ids), (m.nbody - 1) * 10),
-                self.cvel[rows, 1:].reshape(-1 if ids is None else len(ids), (m.nbody - 1) * 6),
-                self.qfrc_actuator[rows, 6:],
-                self.cfrc_ext[rows, 1:].reshape(-1 if ids is None else len(ids), (m.nbody - 1) * 6),
+                self.cinert[slots, 1:].reshape(-1, (m.nbody - 1) * 10),
+                self.cvel[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
+                self.qfrc_actuator[slots, 6:],
+                self.cfrc_ext[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
             ]
         if ids is None:
             np.concatenate(parts, axis=1, out=self._obs)
@@ -111,17 +111,16 @@ class MujocoBatchEnv(BatchEnv):
     def _contact_forces(self, ids: np.ndarray | None) -> None:
         """Gymnasium's ``mj_rnePostConstraint`` after each step: external contact forces per body."""
         data = self._scratch
-        for sim in self._all if ids is None else ids:
+        for sim in self._all[rows(ids)]:
             self.batch.get_data(int(sim), data)
             mujoco.mj_rnePostConstraint(self.model, data)
             self.cfrc_ext[sim] = data.cfrc_ext
 
     def _reset_slots(self, ids: np.ndarray | None) -> None:
-        rows = self._all if ids is None else ids
         m, task = self.model, self.task
         scale = task.reset_noise_scale
         self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
-        for sim in rows:
+        for sim in self._all[rows(ids)]:
             rng = self._rngs[sim]
             self.qpos[sim] = self.init_qpos + rng.uniform(low=-scale, high=scale, size=m.nq)
             if task.qvel_noise == "normal":
@@ -130,28 +129,28 @@ class MujocoBatchEnv(BatchEnv):
                 self.qvel[sim] = self.init_qvel + rng.uniform(low=-scale, high=scale, size=m.nv)
         self.batch.forward(ids)
         if task.standup:
-            self.cfrc_ext[rows] = 0.0  # mj_resetData clears it and mj_forward does not compute it
+            self.cfrc_ext[rows(ids)] = 0.0  # mj_resetData clears it and mj_forward does not compute it
         self._write_obs(ids)
 
     def _advance(self, ids: np.ndarray | None, action: np.ndarray) -> None:
-        rows = slice(None) if ids is None else ids
+        slots = rows(ids)
         task = self.task
-        self.ctrl[rows] = action
+        self.ctrl[slots] = action
         if not task.standup:
-            self._x_before[rows] = self.qpos[rows, 0]
+            self._x_before[slots] = self.qpos[slots, 0]
         t0 = time.perf_counter()
         self.batch.step(ids, nstep=task.frame_skip)
         self.physics_seconds += time.perf_counter() - t0
         if task.standup:
             self._contact_forces(ids)
-            uph = self.qpos[rows, 2] / self.model.opt.timestep
-            quad_ctrl = task.ctrl_cost_weight * np.square(self.ctrl[rows]).sum(-1)
-            impact = np.minimum(IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[rows]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX)
-            self._reward[rows] = uph - quad_ctrl - impact + 1
+            uph = self.qpos[slots, 2] / self.model.opt.timestep
+            quad_ctrl = task.ctrl_cost_weight * np.square(self.ctrl[slots]).sum(-1)
+            impact = np.minimum(IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX)
+            self._reward[slots] = uph - quad_ctrl - impact + 1
         else:
             # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
             ctrl_cost = task.ctrl_cost_weight * np.square(action).sum(-1)
-            self._reward[rows] = (self.qpos[rows, 0] - self._x_before[rows]) / self.dt - ctrl_cost
+            self._reward[slots] = (self.qpos[slots, 0] - self._x_before[slots]) / self.dt - ctrl_cost
         self._write_obs(ids)
 
 
