@@ -73,6 +73,9 @@ class PopulationSPN(nn.Module):
         self.v_th = v_th
         self.w1_eff: torch.Tensor | None = None
         self.w2_eff: torch.Tensor | None = None
+        # the hidden layer's spikes from thresholds on its current (neurons.threshold_spikes): derived, not saved
+        self.register_buffer("spike_thresholds", neurons.spike_thresholds(time_steps, decay, v_th), persistent=False)
+        self.register_buffer("spike_pattern", neurons.spike_pattern(time_steps), persistent=False)
 
     @property
     def genome_size(self) -> int:
@@ -104,9 +107,14 @@ class PopulationSPN(nn.Module):
         obs = observation.to(self.w1_eff.dtype)
         if obs.shape[0] != self.w1_eff.shape[0]:
             raise ValueError(f"observation batch {obs.shape[0]} != number of genomes {self.w1_eff.shape[0]}")
-        out, spikes = neurons.spn_dynamics(self.w1_eff, self.w2_eff, obs, self.time_steps, self.decay, self.v_th)
+        out, spikes = neurons.spn_dynamics(
+            self.w1_eff, self.w2_eff, obs, self.time_steps, self.decay, self.v_th, hidden_spikes=self._hidden_spikes
+        )
         action = out.argmax(-1) if self.discrete else torch.clamp(out, self.action_low, self.action_high)
         return action, spikes
+
+    def _hidden_spikes(self, current: torch.Tensor) -> torch.Tensor:
+        return neurons.threshold_spikes(current, self.spike_thresholds, self.spike_pattern)
 
     def _split(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if genomes.ndim != 2 or genomes.shape[1] != self.genome_size:
