@@ -74,18 +74,32 @@ class BatchEnv(EnvBase):
             batch_size=self.batch_size,
         )
 
+    def step_slots(
+        self, action: np.ndarray, ids: np.ndarray | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Step slots ``ids`` (None: all) with their actions (a row per stepped slot): what :meth:`_step` does
+        without TensorDicts. Returns every slot's observation [P, n] float32, reward [P] float32 (0 for the
+        slots left out), terminated and truncated [P] bool, each a new tensor."""
+        if ids is not None:
+            self._reward[:] = 0.0
+        self._advance(ids, action)
+        self._elapsed[rows(ids)] += 1
+        return (
+            torch.from_numpy(self._obs).float(),
+            torch.from_numpy(self._reward).float(),
+            torch.from_numpy(self._terminated.copy()),
+            torch.from_numpy(self._elapsed >= self.max_episode_steps),  # as TimeLimit
+        )
+
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         ids = _selected(tensordict.get("_step", None))
         action = tensordict.get("action").detach().numpy()
-        self._reward[:] = 0.0
-        self._advance(ids, action[rows(ids)])
-        self._elapsed[rows(ids)] += 1
-        terminated = torch.from_numpy(self._terminated.copy()).unsqueeze(-1)
-        truncated = torch.from_numpy(self._elapsed >= self.max_episode_steps).unsqueeze(-1)  # as TimeLimit
+        obs, reward, terminated, truncated = self.step_slots(action[rows(ids)], ids)
+        terminated, truncated = terminated.unsqueeze(-1), truncated.unsqueeze(-1)
         return TensorDict(
             {
-                "observation": torch.from_numpy(self._obs).float(),
-                "reward": torch.from_numpy(self._reward).float().unsqueeze(-1),
+                "observation": obs,
+                "reward": reward.unsqueeze(-1),
                 "done": terminated | truncated,
                 "terminated": terminated,
                 "truncated": truncated,

@@ -8,8 +8,10 @@ from typing import Callable, Protocol
 import numpy as np
 import torch
 from omegaconf import DictConfig
+from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
+from spn_torchrl.batch_env import BatchEnv
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import ConfigError, require
 from spn_torchrl.policies import PopulationSPN
@@ -53,8 +55,10 @@ class PopulationEvaluator:
 
     The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; it
     needs no transforms, as returns and steps are counted here. A call with fewer than P genomes leaves the
-    remaining slots out of every result. Once some slots are idle, each step carries TorchRL's ``"_step"``
-    mask: a backend that honours it (mujoco_batch, cartpole_batch) does not simulate them, others ignore it.
+    remaining slots out of every result. A batch backend (:class:`~spn_torchrl.batch_env.BatchEnv`) is stepped
+    through :meth:`~spn_torchrl.batch_env.BatchEnv.step_slots`, the core of its TorchRL ``step`` without the
+    TensorDicts, on the slots still running; any other env through TorchRL's ``step_and_maybe_reset``, with the
+    ``"_step"`` mask once some slots are idle where its batch is one-dimensional.
     """
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
@@ -63,6 +67,10 @@ class PopulationEvaluator:
         self.shape = env.batch_size
         self.size = env.batch_size.numel()
         self.max_episode_steps = max_episode_steps
+        self.direct = isinstance(env, BatchEnv)
+        # a ParallelEnv only takes "_step" masks of whole workers, so it gets none
+        self.masks = len(self.shape) == 1
+        self._td: TensorDictBase | None = None
 
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
         count = genomes.shape[0]
@@ -71,37 +79,48 @@ class PopulationEvaluator:
         self.spn.set_genomes(genomes)
         active = torch.arange(self.size) < count
         returns = torch.zeros(self.size)
-        steps = torch.zeros(self.size, dtype=torch.long)
+        steps = torch.full((self.size,), self.max_episode_steps)  # until a slot's episode ends earlier
         spikes = torch.zeros(count)
-        idle = self.size - count
+        everyone = count == self.size  # while every slot runs, nothing needs masking
 
-        # a one-process env takes TorchRL's per-slot "_step" mask (the batch backends skip idle slots, GymWrapper
-        # ignores it); a ParallelEnv only takes masks of whole workers, so it gets none
-        masks = len(self.shape) == 1
-        partial = masks and count < self.size
         self.env.set_seed(seed)
-        td = self.env.reset()
-        for _ in range(self.max_episode_steps):
+        self._td = self.env.reset()
+        obs = self._td.get("observation").reshape(self.size, -1)
+        for step in range(1, self.max_episode_steps + 1):
             # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
-            action, hidden_spikes = self.spn(td.get("observation").reshape(self.size, -1)[:count])
-            spikes += hidden_spikes * active[:count]
-            if idle:  # the idle slots repeat the first action, a valid one that is never counted
-                action = torch.cat([action, action[:1].expand(idle, *action.shape[1:])])
-            td.set("action", action.reshape(*self.shape, *action.shape[1:]))
-            if partial:
-                td.set("_step", active.clone())
-            stepped, td = self.env.step_and_maybe_reset(td)
-            nxt = stepped.get("next")
-            # float32 sums in step order, as TorchRL's RewardSum would give
-            returns += nxt.get("reward").reshape(self.size).float() * active
-            steps += active
-            finished = nxt.get("done").reshape(self.size) & active
+            action, hidden_spikes = self.spn(obs[:count])
+            spikes += hidden_spikes if everyone else hidden_spikes * active[:count]
+            obs, reward, done = self._step(action, None if everyone else active)
+            returns += reward if everyone else reward * active  # float32 sums in step order, as TorchRL's RewardSum
+            finished = done if everyone else done & active
             if finished.any():
+                steps[finished] = step
                 active &= ~finished
-                partial = masks
+                everyone = False
                 if not active.any():
                     break
+        self._td = None
         return Episodes(returns[:count], steps[:count], spikes)
+
+    def _step(self, action: torch.Tensor, active: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Step the ``active`` slots (None: all) with ``action`` (a row for each of the first slots); the
+        observations [P, n], rewards [P] and done flags [P] of every slot."""
+        if self.direct:
+            ids = None if active is None else np.flatnonzero(active.numpy())
+            rows = action.numpy()
+            obs, reward, terminated, truncated = self.env.step_slots(rows if ids is None else rows[ids], ids)
+            return obs, reward, terminated | truncated
+        idle = self.size - action.shape[0]
+        if idle:  # the idle slots repeat the first action, a valid one that is never counted
+            action = torch.cat([action, action[:1].expand(idle, *action.shape[1:])])
+        td = self._td
+        td.set("action", action.reshape(*self.shape, *action.shape[1:]))
+        if active is not None and self.masks:
+            td.set("_step", active.clone())
+        stepped, self._td = self.env.step_and_maybe_reset(td)
+        nxt = stepped.get("next")
+        obs = self._td.get("observation").reshape(self.size, -1)
+        return obs, nxt.get("reward").reshape(self.size).float(), nxt.get("done").reshape(self.size)
 
     def close(self) -> None:
         if not self.env.is_closed:

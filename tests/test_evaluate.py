@@ -2,9 +2,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from torchrl.envs import TransformedEnv
 
 from spn_torchrl import ga
-from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
 from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
 from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights
 
@@ -86,3 +87,21 @@ def test_two_worker_processes_give_the_same_episodes_for_the_first_workers_slots
     # worker 0 is seeded like the single process; ParallelEnv derives worker 1's seed on its own
     assert torch.equal(a.returns[:4], b.returns[:4]) and torch.equal(a.steps[:4], b.steps[:4])
     assert part.returns.shape == (6,) and torch.equal(part.returns, b.returns[:6])
+
+
+@pytest.mark.parametrize("env_id,backend,steps", [("CartPole-v1", "cartpole_batch", 500), ("Swimmer-v5", "mujoco_batch", 30)])
+def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, backend, steps):
+    spec, spn, genomes, _ = setup(env_id, 6, 1.0)
+    direct = PopulationEvaluator(make_batched_env(env_id, 6, backend=backend), spn, steps)
+    # the same env behind an empty transform is stepped through TorchRL's step_and_maybe_reset
+    through_torchrl = PopulationEvaluator(TransformedEnv(make_batched_env(env_id, 6, backend=backend)), spn, steps)
+    assert direct.direct and not through_torchrl.direct
+    try:
+        for count in (6, 4):
+            a, b = direct(genomes[:count], seed=3), through_torchrl(genomes[:count], seed=3)
+            assert torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+        if backend == "cartpole_batch":
+            assert len(set(a.steps.tolist())) > 1  # episodes ended at different steps: the masks were used
+    finally:
+        direct.close()
+        through_torchrl.close()
