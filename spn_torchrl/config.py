@@ -73,19 +73,22 @@ class EnvConfig:
     name: str = MISSING
     id: str = MISSING
     backend: str = "gymnasium"
-    num_workers: int = 1  # worker processes stepping the population (1 suits a 2-core machine)
+    num_workers: int = 1  # mujoco_batch: physics threads of each env; gymnasium: worker processes (ParallelEnv)
+    processes: int = 1  # GA evaluation on this machine: processes that each run a shard of the population
 
 
 @dataclass
 class LocalEvaluatorConfig:
-    """Evaluate the population in this process, on the env of ``env.backend``."""
+    """Evaluate the population on this machine, on envs of ``env.backend``."""
 
     name: str = "local"
+    start_timeout_s: float = 300.0  # the worker processes of env.processes > 1 must be up (envs built) within this time
 
 
 @dataclass
 class RayEvaluatorConfig:
-    """Shard the population across Ray actors, each stepping its own batched env (spn_torchrl/ray_evaluator.py)."""
+    """Shard the population across Ray actors, each stepping its own batched env (spn_torchrl/ray_evaluator.py);
+    the actors are the processes, so env.processes does not apply."""
 
     name: str = "ray"
     address: Optional[str] = None  # a running cluster ("auto", "ray://head:10001"); None starts a local one
@@ -233,6 +236,12 @@ def validate(cfg: DictConfig) -> None:
     )
     if cfg.evaluator.name == "ray":
         validate_ray_evaluator(cfg.evaluator, cfg.algo.population)
+    if cfg.evaluator.name == "local" and kind == "ga":
+        _require(
+            1 <= cfg.env.processes <= cfg.algo.population,
+            f"env.processes must be in [1, algo.population={cfg.algo.population}], got {cfg.env.processes}",
+        )
+        _require(cfg.evaluator.start_timeout_s > 0, f"evaluator.start_timeout_s must be > 0, got {cfg.evaluator.start_timeout_s}")
 
     _require(
         cfg.env.backend in BACKENDS,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -15,6 +16,8 @@ from spn_torchrl.batch_env import BatchEnv
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import ConfigError, require
 from spn_torchrl.policies import PopulationSPN
+
+log = logging.getLogger("spn_torchrl")
 
 
 @dataclass
@@ -135,10 +138,34 @@ class Evaluator(Protocol):
     def close(self) -> None: ...
 
 
-def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> PopulationEvaluator:
-    """One batched env of :func:`evaluation_slots` copies in this process."""
-    env = make_batched_env(spec.env_id, evaluation_slots(cfg.algo), backend=cfg.env.backend, num_workers=cfg.env.num_workers)
-    return PopulationEvaluator(env, spn, spec.max_episode_steps)
+def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The :func:`evaluation_slots` copies on this machine, in ``env.processes`` processes."""
+    return machine_evaluator(
+        spn, spec.env_id, evaluation_slots(cfg.algo), cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps,
+        cfg.env.processes, cfg.evaluator.start_timeout_s,
+    )
+
+
+def machine_evaluator(
+    spn: PopulationSPN,
+    env_id: str,
+    slots: int,
+    backend: str,
+    num_workers: int,
+    max_episode_steps: int,
+    processes: int = 1,
+    start_timeout_s: float = 300.0,
+) -> Evaluator:
+    """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
+    > 1, one shard of them in each worker process (spn_torchrl/process_evaluator.py)."""
+    if processes > 1:
+        from spn_torchrl.process_evaluator import ProcessEvaluator, spawn_blocked_by
+
+        blocker = spawn_blocked_by()
+        if blocker is None:
+            return ProcessEvaluator(spn, env_id, slots, backend, num_workers, max_episode_steps, processes, start_timeout_s)
+        log.warning("env.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker)
+    return PopulationEvaluator(make_batched_env(env_id, slots, backend=backend, num_workers=num_workers), spn, max_episode_steps)
 
 
 def ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:

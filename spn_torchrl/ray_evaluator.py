@@ -1,8 +1,7 @@
 """Population evaluation on Ray: ``evaluator=ray``.
 
-The population is cut into contiguous shards, one per actor. Each actor builds its batched env and SPN once
-(the fixed weights reach it once, through the object store) and runs its shard with the local
-:class:`~spn_torchrl.evaluate.PopulationEvaluator`, seeding its env slot j with ``seed + offset + j`` so that
+The population is cut into contiguous shards, one per actor (:mod:`spn_torchrl.shards`). Each actor builds its
+batched env and SPN once (the fixed weights reach it once, through the object store) and runs its shard, so that
 every individual gets the same episode as in the local evaluator. Per call only the genomes go out (connection
 genomes as packed mask bits) and three numbers per individual come back.
 
@@ -13,70 +12,23 @@ from __future__ import annotations
 
 import copy
 import logging
-import math
 import time
 from pathlib import Path
 
-import numpy as np
 import ray
 import torch
 from omegaconf import DictConfig
 
-from spn_torchrl.envs import TaskSpec, make_batched_env
+from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
-from spn_torchrl.evaluate import Episodes, PopulationEvaluator, evaluation_slots
+from spn_torchrl.evaluate import Episodes, evaluation_slots
 from spn_torchrl.policies import PopulationSPN
+from spn_torchrl.shards import ShardWorker, encode_genomes, merge, shard_bounds
 
 log = logging.getLogger("spn_torchrl")
 
 
-def shard_bounds(count: int, parts: int) -> list[tuple[int, int]]:
-    """``parts`` contiguous [start, stop) ranges covering ``count`` items, sizes differing by at most one
-    (the first ``count % parts`` get one more). For ``count <= population`` every range fits in the
-    matching range of the population, so actor i's env always holds shard i."""
-    base, extra = divmod(count, parts)
-    bounds, start = [], 0
-    for i in range(parts):
-        stop = start + base + (i < extra)
-        bounds.append((start, stop))
-        start = stop
-    return bounds
-
-
-def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
-    """What crosses the network for a genome set [B, D]: connection genomes as their masks, packed 8 genes a
-    byte ([B, ceil(D/8)] uint8: a mask is all a connection genome decides); weight genomes as float32 [B, D]."""
-    if spn.genome_kind == "connections":
-        mask1, mask2 = spn.masks(genomes)
-        return np.packbits(torch.cat([mask1.flatten(1), mask2.flatten(1)], 1).numpy(), axis=1)
-    return np.ascontiguousarray(genomes.detach().to(torch.float32).cpu().numpy())
-
-
-def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
-    """Genomes [B, D] that give the SPN exactly the masks (or weights) :func:`encode_genomes` sent."""
-    if genome_kind == "connections":
-        bits = torch.from_numpy(np.unpackbits(payload, axis=1, count=genome_size).astype(bool))
-        # scores of +-inf give sigmoid 1 or 0: the same mask for any threshold in (0, 1)
-        return torch.where(bits, math.inf, -math.inf)
-    return torch.tensor(payload)
-
-
-@ray.remote
-class ShardActor:
-    """Holds one batched env of ``capacity`` slots and the SPN; evaluates shards of encoded genomes."""
-
-    def __init__(self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, num_workers: int, max_episode_steps: int) -> None:
-        torch.set_num_threads(1)
-        env = make_batched_env(env_id, capacity, backend=backend, num_workers=num_workers)
-        self.evaluator = PopulationEvaluator(env, spn, max_episode_steps)
-        self.genome_kind, self.genome_size = spn.genome_kind, spn.genome_size
-
-    def ready(self) -> int:
-        return self.evaluator.size
-
-    def evaluate(self, payload: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seed)
-        return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+ShardActor = ray.remote(ShardWorker)
 
 
 class RayEvaluator:
@@ -104,9 +56,7 @@ class RayEvaluator:
                 self.bytes_sent += shard.nbytes + 8  # + the int64 seed
                 calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, seed + start)))
         deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
-        parts = [self._collect(*call, deadline) for call in calls]
-        returns, steps, spikes = (torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts))
-        return Episodes(returns, steps, spikes)
+        return merge([self._collect(*call, deadline) for call in calls])
 
     def _collect(self, index: int, start: int, stop: int, ref, deadline: float | None):
         where = f"Ray actor {index} (individuals {start}..{stop - 1})"

@@ -6,7 +6,9 @@ from torchrl.envs import TransformedEnv
 
 from spn_torchrl import ga
 from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
+from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
+from spn_torchrl.process_evaluator import ProcessEvaluator
 from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights
 
 
@@ -87,6 +89,33 @@ def test_two_worker_processes_give_the_same_episodes_for_the_first_workers_slots
     # worker 0 is seeded like the single process; ParallelEnv derives worker 1's seed on its own
     assert torch.equal(a.returns[:4], b.returns[:4]) and torch.equal(a.steps[:4], b.steps[:4])
     assert part.returns.shape == (6,) and torch.equal(part.returns, b.returns[:6])
+
+
+@pytest.mark.parametrize("env_id,backend,processes", [("CartPole-v1", "cartpole_batch", 3), ("Swimmer-v5", "mujoco_batch", 2)])
+def test_worker_processes_give_the_one_process_episodes(env_id, backend, processes):
+    spec, spn, genomes, _ = setup(env_id, 7, 1.0)
+    steps = 40 if backend == "mujoco_batch" else spec.max_episode_steps
+    one = PopulationEvaluator(make_batched_env(env_id, 7, backend=backend), spn, steps)
+    many = ProcessEvaluator(spn, env_id, 7, backend, 1, steps, processes)
+    try:
+        assert [p.is_alive() for p in many._processes] == [True] * processes
+        for count in (7, 5, 2):  # a full set, a partial one, fewer genomes than processes
+            a, b = one(genomes[:count], seed=9), many(genomes[:count], seed=9)
+            assert torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+        with pytest.raises(ValueError, match="hold 7 individuals"):
+            many(torch.zeros(8, spn.genome_size), 0)
+        assert len(many.gather("peak_memory_mb")) == processes
+    finally:
+        one.close()
+        workers = many._processes
+        many.close()
+    assert not any(p.is_alive() for p in workers)
+
+
+def test_a_worker_process_that_cannot_build_its_env_raises_its_error():
+    spec, spn, _, _ = setup("CartPole-v1", 4, 1.0)
+    with pytest.raises(ConfigError, match="env.num_workers must be 1"):
+        ProcessEvaluator(spn, "CartPole-v1", 4, "cartpole_batch", 2, spec.max_episode_steps, 2)
 
 
 @pytest.mark.parametrize("env_id,backend,steps", [("CartPole-v1", "cartpole_batch", 500), ("Swimmer-v5", "mujoco_batch", 30)])

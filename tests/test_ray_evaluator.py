@@ -16,7 +16,7 @@ from spn_torchrl.errors import ConfigError, EvaluatorError  # noqa: E402
 from spn_torchrl.evaluate import PopulationEvaluator, make_evaluator  # noqa: E402
 from spn_torchrl.policies import spn_from_config  # noqa: E402
 from spn_torchrl.policies import init_fixed_weights  # noqa: E402
-from spn_torchrl.ray_evaluator import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
+from spn_torchrl.shards import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 register_configs()
@@ -46,7 +46,8 @@ def setup(cfg, sigma=1.0):
 
 
 def local_episodes(cfg, spec, spn, genomes, seed):
-    evaluator = PopulationEvaluator(make_population_env(spec.env_id, cfg.algo.population), spn, spec.max_episode_steps)
+    env = make_population_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend)
+    evaluator = PopulationEvaluator(env, spn, spec.max_episode_steps)
     try:
         return evaluator(genomes, seed)
     finally:
@@ -111,7 +112,7 @@ def kill_during_call(evaluator, genomes, actor_index, no_restart, seed):
     killed = threading.Event()
 
     def killer():
-        time.sleep(0.5)
+        time.sleep(0.3)
         ray.kill(actor, no_restart=no_restart)
         killed.set()
 
@@ -125,7 +126,7 @@ def kill_during_call(evaluator, genomes, actor_index, no_restart, seed):
 
 def slow_setup(*overrides):
     """HalfCheetah episodes run their full 1000 steps: a call lasts long enough to kill an actor during it."""
-    cfg = make_cfg("env=halfcheetah", "algo.population=4", "evaluator.num_actors=2", *overrides)
+    cfg = make_cfg("env=halfcheetah", "algo.population=40", "evaluator.num_actors=2", *overrides)
     spec, spn, genomes = setup(cfg)
     return cfg, spec, spn, genomes
 
@@ -135,7 +136,7 @@ def test_an_actor_killed_mid_call_is_a_clear_error(ray_cluster):
     evaluator = make_evaluator(cfg, spec, spn)
     started = time.monotonic()
     try:
-        with pytest.raises(EvaluatorError, match=r"Ray actor 1 \(individuals 2..3\) died"):
+        with pytest.raises(EvaluatorError, match=r"Ray actor 1 \(individuals 20..39\) died"):
             kill_during_call(evaluator, genomes, 1, no_restart=True, seed=5)
     finally:
         evaluator.close()
@@ -150,7 +151,7 @@ def test_an_actor_killed_mid_call_is_restarted_and_its_shard_rerun(ray_cluster):
     finally:
         evaluator.close()
     assert killed.is_set()
-    assert torch.equal(episodes.steps, torch.full((4,), 1000))
+    assert torch.equal(episodes.steps, torch.full((40,), 1000))
     assert torch.equal(episodes.returns, local_episodes(cfg, spec, spn, genomes, 5).returns)
 
 

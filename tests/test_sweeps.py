@@ -66,6 +66,8 @@ def test_parallel_sweep_runs_share_a_wandb_group_and_are_named_per_seed(tmp_path
         record = wandb_run_file(sweep_dir / f"cartpole__conn_ga__{seed}")
         assert run_record_field("run_group", "my_sweep") in record  # the sweep directory's name
         assert run_record_field("display_name", f"cartpole__conn_ga__{seed}") in record
+        # a loky worker cannot spawn env.processes workers: the job says so and evaluates in its own process
+        assert "evaluating in this process" in (sweep_dir / f"cartpole__conn_ga__{seed}" / "train.log").read_text()
 
 
 def launcher(name: str):

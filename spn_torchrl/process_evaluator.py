@@ -1,0 +1,147 @@
+"""Population evaluation in worker processes on this machine: ``env.processes`` > 1.
+
+Each worker process holds one shard's batched env and SPN (:class:`~spn_torchrl.shards.ShardWorker`, built
+once) and runs its episodes to their end on its own. One shard's SPN and env bookkeeping run while the other
+shards' physics runs, so no core waits on the Python of a step; in one process the physics threads wait for
+it at every step. The episodes are the one-process evaluator's, bit for bit.
+"""
+
+from __future__ import annotations
+
+import copy
+import multiprocessing
+import signal
+import time
+from multiprocessing.connection import Connection
+from typing import Any
+
+import torch
+
+from spn_torchrl.errors import EvaluatorError, SpnError
+from spn_torchrl.evaluate import Episodes
+from spn_torchrl.policies import PopulationSPN
+from spn_torchrl.shards import Results, ShardWorker, encode_genomes, merge, shard_bounds
+
+
+def spawn_blocked_by() -> str | None:
+    """Why this process cannot spawn workers, or None. A spawned child restores its parent's default start
+    method, which fails for a third party's (joblib's loky workers, i.e. a ``hydra/launcher=parallel`` job)."""
+    method = multiprocessing.get_start_method(allow_none=True)
+    if method in (None, "spawn", "fork", "forkserver"):
+        return None
+    return f"this process's multiprocessing start method is {method!r} (e.g. a joblib worker), whose children cannot spawn"
+
+
+def _serve(conn: Connection, spn: PopulationSPN, *worker_args: Any) -> None:
+    """A worker process: build the shard's env, then answer requests until told to stop or orphaned."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle; it stops the workers
+    try:
+        try:
+            worker = ShardWorker(spn, *worker_args)
+            conn.send(("ok", worker.ready()))
+            while (request := conn.recv()) is not None:
+                method, args = request
+                conn.send(("ok", getattr(worker, method)(*args)))
+        except SpnError as err:
+            conn.send(("error", err))
+        except (EOFError, BrokenPipeError):
+            raise
+        except Exception as err:  # reported to the parent, with its type, which raises it there
+            conn.send(("error", EvaluatorError(f"{type(err).__name__}: {err}")))
+    except (EOFError, BrokenPipeError):  # the parent is gone
+        return
+
+
+class ProcessEvaluator:
+    """The :class:`~spn_torchrl.evaluate.Evaluator` over ``processes`` worker processes, each holding a
+    contiguous shard of the ``capacity`` slots."""
+
+    def __init__(
+        self,
+        spn: PopulationSPN,
+        env_id: str,
+        capacity: int,
+        backend: str,
+        num_workers: int,
+        max_episode_steps: int,
+        processes: int,
+        start_timeout_s: float = 300.0,
+    ) -> None:
+        self.spn = spn
+        self.capacity = capacity
+        self.bounds = shard_bounds(capacity, processes)
+        # the fixed weights only: the effective weights of an earlier set_genomes would only add bytes
+        bare = copy.copy(spn)
+        bare.w1_eff = bare.w2_eff = None
+        context = multiprocessing.get_context("spawn")  # no fork of a process that runs threads
+        self._pipes: list[Connection] = []
+        self._processes: list[multiprocessing.process.BaseProcess] = []
+        try:
+            for index, (start, stop) in enumerate(self.bounds):
+                parent, child = context.Pipe()
+                process = context.Process(
+                    target=_serve,
+                    args=(child, bare, env_id, stop - start, backend, num_workers, max_episode_steps),
+                    name=f"spn_torchrl-shard-{index}",
+                    daemon=True,
+                )
+                process.start()
+                child.close()
+                self._pipes.append(parent)
+                self._processes.append(process)
+            deadline = time.monotonic() + start_timeout_s
+            for index in range(processes):
+                self._receive(index, deadline, "start")
+        except BaseException:
+            self.close()
+            raise
+
+    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
+        count = genomes.shape[0]
+        if not 0 < count <= self.capacity:
+            raise ValueError(f"the evaluator processes hold {self.capacity} individuals, got {count} genomes")
+        payload = encode_genomes(self.spn, genomes)
+        asked = []
+        for index, (start, stop) in enumerate(shard_bounds(count, len(self._pipes))):
+            if stop > start:
+                self._pipes[index].send(("evaluate", (payload[start:stop], seed + start)))
+                asked.append(index)
+        return merge([self._receive(index, None, "evaluate") for index in asked])
+
+    def gather(self, query: str) -> list:
+        """Each worker's answer to a :class:`~spn_torchrl.shards.ShardWorker` query (e.g. ``"peak_memory_mb"``)."""
+        for pipe in self._pipes:
+            pipe.send((query, ()))
+        return [self._receive(index, None, f"answer {query}") for index in range(len(self._pipes))]
+
+    def _receive(self, index: int, deadline: float | None, what: str) -> Results | Any:
+        pipe, process = self._pipes[index], self._processes[index]
+        start, stop = self.bounds[index]
+        where = f"evaluator process {index} (slots {start}..{stop - 1})"
+        while not pipe.poll(0.5):  # in slices, so that a dead worker is noticed
+            if not process.is_alive():
+                raise EvaluatorError(f"{where} died (exit code {process.exitcode}) before it could {what}")
+            if deadline is not None and time.monotonic() > deadline:
+                raise EvaluatorError(f"{where} did not start within evaluator.start_timeout_s")
+        try:
+            status, value = pipe.recv()
+        except EOFError:
+            raise EvaluatorError(f"{where} died (exit code {process.exitcode}) before it could {what}") from None
+        if status == "error":
+            raise value
+        return value
+
+    def close(self) -> None:
+        for pipe in self._pipes:
+            try:
+                pipe.send(None)
+            except OSError:
+                pass
+        for process in self._processes:
+            process.join(timeout=10)
+            if process.is_alive():
+                process.kill()
+                process.join()
+        for pipe in self._pipes:
+            pipe.close()
+        self._pipes, self._processes = [], []

@@ -1,0 +1,88 @@
+"""A population cut into contiguous shards, each evaluated by a worker that holds its own batched env.
+
+What the multi-process evaluators share (``env.processes`` on this machine, ``evaluator=ray`` on a
+cluster): the shard bounds, the genome payload a worker receives (connection genomes as packed mask bits),
+and :class:`ShardWorker`, which seeds its env slot j with ``seed + offset + j`` so that every individual gets
+the episode the one-process evaluator gives it.
+"""
+
+from __future__ import annotations
+
+import math
+import resource
+
+import numpy as np
+import torch
+
+from spn_torchrl.envs import make_batched_env
+from spn_torchrl.evaluate import Episodes, PopulationEvaluator
+from spn_torchrl.policies import PopulationSPN
+
+Results = tuple[np.ndarray, np.ndarray, np.ndarray]  # returns, steps, spikes of one shard
+
+
+def shard_bounds(count: int, parts: int) -> list[tuple[int, int]]:
+    """``parts`` contiguous [start, stop) ranges covering ``count`` items, sizes differing by at most one
+    (the first ``count % parts`` get one more). For ``count <= population`` every range fits in the
+    matching range of the population, so worker i's env always holds shard i."""
+    base, extra = divmod(count, parts)
+    bounds, start = [], 0
+    for i in range(parts):
+        stop = start + base + (i < extra)
+        bounds.append((start, stop))
+        start = stop
+    return bounds
+
+
+def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
+    """What a worker receives for a genome set [B, D]: connection genomes as their masks, packed 8 genes a
+    byte ([B, ceil(D/8)] uint8: a mask is all a connection genome decides); weight genomes as float32 [B, D]."""
+    if spn.genome_kind == "connections":
+        mask1, mask2 = spn.masks(genomes)
+        return np.packbits(torch.cat([mask1.flatten(1), mask2.flatten(1)], 1).numpy(), axis=1)
+    return np.ascontiguousarray(genomes.detach().to(torch.float32).cpu().numpy())
+
+
+def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
+    """Genomes [B, D] that give the SPN exactly the masks (or weights) :func:`encode_genomes` sent."""
+    if genome_kind == "connections":
+        bits = torch.from_numpy(np.unpackbits(payload, axis=1, count=genome_size).astype(bool))
+        # scores of +-inf give sigmoid 1 or 0: the same mask for any threshold in (0, 1)
+        return torch.where(bits, math.inf, -math.inf)
+    return torch.tensor(payload)
+
+
+def merge(parts: list[Results]) -> Episodes:
+    """The episodes of the whole genome set from its shards' results, in shard order."""
+    returns, steps, spikes = (torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts))
+    return Episodes(returns, steps, spikes)
+
+
+class ShardWorker:
+    """One shard's batched env of ``capacity`` slots and the SPN; evaluates shards of encoded genomes."""
+
+    def __init__(
+        self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, num_workers: int, max_episode_steps: int
+    ) -> None:
+        torch.set_num_threads(1)
+        env = make_batched_env(env_id, capacity, backend=backend, num_workers=num_workers)
+        self.evaluator = PopulationEvaluator(env, spn, max_episode_steps)
+        self.genome_kind, self.genome_size = spn.genome_kind, spn.genome_size
+
+    def ready(self) -> int:
+        return self.evaluator.size
+
+    def evaluate(self, payload: np.ndarray, seed: int) -> Results:
+        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seed)
+        return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+
+    def peak_memory_mb(self) -> float:
+        """This process's peak resident memory."""
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    def physics_seconds(self) -> float | None:
+        """Wall time this shard's env spent inside its batched physics call (None: not a mujoco_batch env)."""
+        return getattr(self.evaluator.env, "physics_seconds", None)
+
+    def close(self) -> None:
+        self.evaluator.close()
