@@ -104,32 +104,44 @@ class ProcessEvaluator:
         asked = []
         for index, (start, stop) in enumerate(shard_bounds(count, len(self._pipes))):
             if stop > start:
-                self._pipes[index].send(("evaluate", (payload[start:stop], seed + start)))
+                self._send(index, ("evaluate", (payload[start:stop], seed + start)), "evaluate")
                 asked.append(index)
         return merge([self._receive(index, None, "evaluate") for index in asked])
 
     def gather(self, query: str) -> list:
         """Each worker's answer to a :class:`~spn_torchrl.shards.ShardWorker` query (e.g. ``"peak_memory_mb"``)."""
-        for pipe in self._pipes:
-            pipe.send((query, ()))
+        for index in range(len(self._pipes)):
+            self._send(index, (query, ()), f"answer {query}")
         return [self._receive(index, None, f"answer {query}") for index in range(len(self._pipes))]
+
+    def _send(self, index: int, message: tuple, what: str) -> None:
+        try:
+            self._pipes[index].send(message)
+        except OSError:  # a broken pipe: the worker is gone
+            raise self._died(index, what) from None
 
     def _receive(self, index: int, deadline: float | None, what: str) -> Results | Any:
         pipe, process = self._pipes[index], self._processes[index]
-        start, stop = self.bounds[index]
-        where = f"evaluator process {index} (slots {start}..{stop - 1})"
         while not pipe.poll(0.5):  # in slices, so that a dead worker is noticed
             if not process.is_alive():
-                raise EvaluatorError(f"{where} died (exit code {process.exitcode}) before it could {what}")
+                raise self._died(index, what)
             if deadline is not None and time.monotonic() > deadline:
-                raise EvaluatorError(f"{where} did not start within evaluator.start_timeout_s")
+                raise EvaluatorError(f"{self._where(index)} did not start within evaluator.start_timeout_s")
         try:
             status, value = pipe.recv()
-        except EOFError:
-            raise EvaluatorError(f"{where} died (exit code {process.exitcode}) before it could {what}") from None
+        except (EOFError, OSError):  # closed or reset: the worker is gone
+            raise self._died(index, what) from None
         if status == "error":
             raise value
         return value
+
+    def _where(self, index: int) -> str:
+        start, stop = self.bounds[index]
+        return f"evaluator process {index} (slots {start}..{stop - 1})"
+
+    def _died(self, index: int, what: str) -> EvaluatorError:
+        self._processes[index].join(timeout=1)
+        return EvaluatorError(f"{self._where(index)} died (exit code {self._processes[index].exitcode}) before it could {what}")
 
     def close(self) -> None:
         for pipe in self._pipes:

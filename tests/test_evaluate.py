@@ -6,7 +6,7 @@ from torchrl.envs import TransformedEnv
 
 from spn_torchrl import ga
 from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
-from spn_torchrl.errors import ConfigError
+from spn_torchrl.errors import ConfigError, EvaluatorError
 from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
 from spn_torchrl.process_evaluator import ProcessEvaluator
 from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights
@@ -134,3 +134,14 @@ def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, bac
     finally:
         direct.close()
         through_torchrl.close()
+
+
+def test_a_worker_process_killed_is_a_clear_error():
+    spec, spn, genomes, _ = setup("CartPole-v1", 6, 1.0)
+    evaluator = ProcessEvaluator(spn, "CartPole-v1", 6, "cartpole_batch", 1, spec.max_episode_steps, 2)
+    try:
+        evaluator._processes[1].kill()
+        with pytest.raises(EvaluatorError, match=r"evaluator process 1 \(slots 3..5\) died \(exit code -9\)"):
+            evaluator(genomes, seed=0)
+    finally:
+        evaluator.close()
