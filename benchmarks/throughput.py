@@ -1,10 +1,13 @@
 """Env steps/s of a GA generation against the physics ceiling and the paper's serial loop.
 
-    python benchmarks/throughput.py --env HalfCheetah-v5 --population 200 --threads 2
+    python benchmarks/throughput.py --env HalfCheetah-v5 --population 200 [--processes 2 --threads 1]
 
-Measures in one process: (a) the ceiling, batched physics only (mujoco.batch, random controls);
-(b) one GA generation per backend as spn_torchrl.evolve runs it (the population and the previous
-generation's elite re-evaluation in one rollout, then selection) through PopulationEvaluator and ga;
+(processes and threads default to the task's conf/env settings: 2 x 1 for HalfCheetah and Swimmer, 1 x 2 for
+HumanoidStandup.)
+
+Measures on the same cores: (a) the ceiling, batched physics only (one mujoco.batch on processes x threads
+threads, random controls); (b) one GA generation per backend as spn_torchrl.evolve runs it with the default
+evaluator (the population and the previous generation's elite re-evaluation in one rollout, then selection);
 (c) the paper's way, one Gymnasium env and one single-policy SPN call per step that computes the masks (as
 the authors' code did), on a short slice, and the same loop with masks computed once. The last line is
 ``ratio_to_ceiling=<x> speedup_vs_paper=<y>``.
@@ -15,34 +18,48 @@ from __future__ import annotations
 import argparse
 import resource
 import time
+from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import torch
 from mujoco.batch import Batch
+from omegaconf import DictConfig, OmegaConf
 
-from spn_torchrl import ga
-from spn_torchrl.envs import make_batched_env, task_spec
-from spn_torchrl.evaluate import PopulationEvaluator
+from spn_torchrl import ga, neurons
+from spn_torchrl.envs import TASKS, task_spec
+from spn_torchrl.evaluate import machine_evaluator
 from spn_torchrl.mujoco_batch import MujocoBatchEnv, batch_task
+from spn_torchrl.process_evaluator import ProcessEvaluator
 from spn_torchrl.policies import PopulationSPN, init_fixed_weights
 
 
-def ceiling(env_id: str, population: int, threads: int, steps: int) -> float:
-    """Env steps/s of the physics alone: P simulations, frame_skip substeps per env step."""
+def ceiling(env_id: str, population: int, threads: int, steps: int, repeats: int = 3) -> float:
+    """Env steps/s of the physics alone: P simulations, frame_skip substeps per env step; the best of
+    ``repeats`` runs from the same start (a ceiling is what the machine can do, not its average)."""
     task = batch_task(env_id)
     env = MujocoBatchEnv(env_id, 1)  # for its model, loaded exactly as the backend does
-    batch = Batch(env.model, population, nthread=threads)
-    ctrl = batch.bind("ctrl")
     rng = np.random.default_rng(0)
     low, high = env.model.actuator_ctrlrange.T
     controls = rng.uniform(low, high, size=(steps, population, env.model.nu))
-    batch.step(nstep=task.frame_skip)
-    t0 = time.perf_counter()
-    for k in range(steps):
-        ctrl[:] = controls[k]
+    best = 0.0
+    for _ in range(repeats):
+        batch = Batch(env.model, population, nthread=threads)
+        ctrl = batch.bind("ctrl")
         batch.step(nstep=task.frame_skip)
-    return population * steps / (time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        for k in range(steps):
+            ctrl[:] = controls[k]
+            batch.step(nstep=task.frame_skip)
+        best = max(best, population * steps / (time.perf_counter() - t0))
+    return best
+
+
+def task_config(env_id: str) -> DictConfig:
+    """conf/env/<task>.yaml of a task id: how train.py runs it."""
+    name = next(name for name, task_id in TASKS.items() if task_id == env_id)
+    return OmegaConf.load(Path(__file__).resolve().parents[1] / "conf" / "env" / f"{name}.yaml")
 
 
 def make_spn(env_id: str, seed: int = 0) -> PopulationSPN:
@@ -52,24 +69,31 @@ def make_spn(env_id: str, seed: int = 0) -> PopulationSPN:
     return PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
 
 
+@dataclass
+class Generation:
+    steps_per_s: float
+    steps: int
+    physics_steps_per_s: float | None  # the physics alone of its episodes (mujoco_batch only)
+    worker_memory_mb: float  # summed peak resident memory of its worker processes
+
+
 def generation(
-    env_id: str, backend: str, population: int, threads: int, episode_steps: int
-) -> tuple[float, int, float | None]:
+    env_id: str, backend: str, population: int, threads: int, episode_steps: int, processes: int = 1
+) -> Generation:
     """One GA generation of SPEC.md as spn_torchrl.evolve runs it in the steady state: one rollout of the N
-    children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection. Returns
-    steps/s, steps and, for mujoco_batch, the share of its wall time spent inside the physics call."""
+    children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection, on the evaluator
+    that ``env.processes=processes`` builds. The physics-alone rate divides its steps by the longest
+    physics wall time of one shard (the shards' physics runs side by side)."""
     spn = make_spn(env_id)
     gen = torch.Generator().manual_seed(0)
     parents = ga.initial_population(population, spn.genome_size, 0.01, gen)
     k, episodes = min(10, population // 10), 10
-    env = make_batched_env(env_id, population + k * episodes, backend=backend, num_workers=threads)
-    evaluator = PopulationEvaluator(env, spn, episode_steps)
+    evaluator = machine_evaluator(spn, env_id, population + k * episodes, backend, threads, episode_steps, processes)
     try:
         fitness = evaluator(parents, seed=1).returns  # the previous generation, not timed
         candidates = ga.elite_candidates(fitness, k)
         children = ga.next_generation(parents, fitness, sigma=0.01, truncation=0.25, generator=gen)
-        if hasattr(env, "physics_seconds"):
-            env.physics_seconds = 0.0
+        before = physics_seconds(evaluator)
         t0 = time.perf_counter()
         result = evaluator(torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)]), seed=2)
         ga.pick_elite(candidates, result.part(population, population + k * episodes).returns.view(k, episodes))
@@ -77,15 +101,27 @@ def generation(
         ga.elite_candidates(fitness, k)
         ga.next_generation(children, fitness, sigma=0.01, truncation=0.25, generator=gen)
         seconds = time.perf_counter() - t0
+        after = physics_seconds(evaluator)
+        memory = sum(evaluator.gather("peak_memory_mb")) if isinstance(evaluator, ProcessEvaluator) else 0.0
     finally:
         evaluator.close()
-    physics = getattr(env, "physics_seconds", None)
-    return result.total_steps / seconds, result.total_steps, None if physics is None else physics / seconds
+    physics = None if after is None else result.total_steps / max(a - b for a, b in zip(after, before))
+    return Generation(result.total_steps / seconds, result.total_steps, physics, memory)
+
+
+def physics_seconds(evaluator) -> list[float] | None:
+    """Seconds each shard's env has spent in its physics call so far (None: not mujoco_batch)."""
+    if isinstance(evaluator, ProcessEvaluator):
+        seconds = evaluator.gather("physics_seconds")
+    else:
+        seconds = [getattr(evaluator.env, "physics_seconds", None)]
+    return None if None in seconds else seconds
 
 
 def paper_way(env_id: str, steps: int, mask_every_step: bool = True) -> float:
-    """The authors' loop: one env, one single-genome SPN call per step; their policy computed the
-    sigmoid masks inside every call (SPEC.md), which ``mask_every_step`` reproduces."""
+    """The authors' loop: one env, one single-genome SPN call per step that runs the LIF time steps one by
+    one; their policy computed the sigmoid masks inside every call (SPEC.md), which ``mask_every_step``
+    reproduces."""
     spn = make_spn(env_id)
     genome = torch.randn(1, spn.genome_size, generator=torch.Generator().manual_seed(0))
     spn.set_genomes(genome)
@@ -96,7 +132,8 @@ def paper_way(env_id: str, steps: int, mask_every_step: bool = True) -> float:
         with torch.no_grad():
             if mask_every_step:
                 spn.set_genomes(genome)
-            action, _ = spn(torch.as_tensor(obs, dtype=torch.float32)[None])
+            out, _ = neurons.spn_dynamics(spn.w1_eff, spn.w2_eff, torch.as_tensor(obs, dtype=torch.float32)[None])
+            action = torch.clamp(out, spn.action_low, spn.action_high)
         obs, _, terminated, truncated, _ = env.step(action[0].numpy())
         if terminated or truncated:
             obs, _ = env.reset()
@@ -113,7 +150,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="HalfCheetah-v5")
     parser.add_argument("--population", type=int, default=200)
-    parser.add_argument("--threads", type=int, default=2, help="physics threads (torch stays at 1)")
+    parser.add_argument("--processes", type=int, help="evaluator processes (env.processes; default: the task config's)")
+    parser.add_argument("--threads", type=int, help="physics threads per process (env.num_workers; default: the task config's)")
     parser.add_argument("--paper-steps", type=int, default=3000, help="env steps of the paper-way slice")
     parser.add_argument("--ceiling-steps", type=int, default=300, help="batched env steps of the ceiling run")
     parser.add_argument("--episode-steps", type=int, default=1000, help="episode cut of the mujoco_batch generation")
@@ -122,28 +160,39 @@ def main() -> None:
     )
     args = parser.parse_args()
     torch.set_num_threads(1)
+    task = task_config(args.env)
+    args.processes = args.processes or task.processes
+    args.threads = args.threads or task.num_workers
+    cores = args.processes * args.threads
 
-    ceil = ceiling(args.env, args.population, args.threads, args.ceiling_steps)
-    print(f"ceiling (mujoco.batch physics only, {args.threads} threads): {ceil:,.0f} env steps/s")
-    batch_sps, batch_steps, share = generation(args.env, "mujoco_batch", args.population, args.threads, args.episode_steps)
-    print(f"generation mujoco_batch: {batch_steps:,} steps, {batch_sps:,.0f} env steps/s, {batch_sps / ceil:.3f} of ceiling")
-    physics_sps = batch_sps / share
-    print(f"  share of its wall time inside the physics call: {share:.3f}")
+    ceil = ceiling(args.env, args.population, cores, args.ceiling_steps)
+    print(f"ceiling (mujoco.batch physics only, one batch on {cores} threads): {ceil:,.0f} env steps/s")
+    batch = generation(args.env, "mujoco_batch", args.population, args.threads, args.episode_steps, args.processes)
+    batch_sps, physics_sps = batch.steps_per_s, batch.physics_steps_per_s
+    print(
+        f"generation mujoco_batch ({args.processes} processes x {args.threads} physics threads): {batch.steps:,} steps, "
+        f"{batch_sps:,.0f} env steps/s, {batch_sps / ceil:.3f} of ceiling"
+    )
     print(
         f"  its physics alone (the SPN's controls): {physics_sps:,.0f} env steps/s, {physics_sps / ceil:.3f} of ceiling "
-        "(the bound on ratio_to_ceiling for any loop around this physics)"
+        f"(the bound on ratio_to_ceiling for any loop around this physics); the loop reaches {batch_sps / physics_sps:.3f} of it"
     )
     if args.gym_episode_steps:
-        gym_sps, gym_steps, _ = generation(args.env, "gymnasium", args.population, 1, args.gym_episode_steps)
+        gym = generation(args.env, "gymnasium", args.population, 1, args.gym_episode_steps, args.processes)
         print(
-            f"generation gymnasium (SyncVectorEnv): {gym_steps:,} steps, {gym_sps:,.0f} env steps/s, "
-            f"{gym_sps / ceil:.3f} of ceiling; mujoco_batch is {batch_sps / gym_sps:.1f}x faster"
+            f"generation gymnasium (SyncVectorEnv, {args.processes} processes): {gym.steps:,} steps, "
+            f"{gym.steps_per_s:,.0f} env steps/s, {gym.steps_per_s / ceil:.3f} of ceiling; "
+            f"mujoco_batch is {batch_sps / gym.steps_per_s:.1f}x faster"
         )
     paper = paper_way(args.env, args.paper_steps)
     print(f"paper way (1 env, 1 policy call per step, masks computed in every call): {paper:,.0f} env steps/s")
     premasked = paper_way(args.env, args.paper_steps, mask_every_step=False)
     print(f"  the same with the masks computed once: {premasked:,.0f} env steps/s (mujoco_batch: {batch_sps / premasked:.1f}x)")
-    print(f"peak memory (maxrss): {peak_memory_mb():,.0f} MB")
+    print(
+        f"peak memory (maxrss): {peak_memory_mb() + batch.worker_memory_mb:,.0f} MB in all; this process "
+        f"{peak_memory_mb():,.0f} MB, the mujoco_batch generation's worker processes {batch.worker_memory_mb:,.0f} MB "
+        "together (each counts the shared libraries it maps)"
+    )
     print(f"ratio_to_ceiling={batch_sps / ceil:.3f} speedup_vs_paper={batch_sps / paper:.1f}")
 
 
