@@ -8,7 +8,6 @@ it at every step. The episodes are the one-process evaluator's, bit for bit.
 
 from __future__ import annotations
 
-import copy
 import multiprocessing
 import signal
 import time
@@ -20,7 +19,7 @@ import torch
 from spn_torchrl.errors import EvaluatorError, SpnError
 from spn_torchrl.evaluate import Episodes
 from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import Results, ShardWorker, encode_genomes, merge, shard_bounds
+from spn_torchrl.shards import Results, ShardWorker, encode_genomes, merge, shard_bounds, without_genomes
 
 
 def spawn_blocked_by() -> str | None:
@@ -70,9 +69,7 @@ class ProcessEvaluator:
         self.spn = spn
         self.capacity = capacity
         self.bounds = shard_bounds(capacity, processes)
-        # the fixed weights only: the effective weights of an earlier set_genomes would only add bytes
-        bare = copy.copy(spn)
-        bare.w1_eff = bare.w2_eff = None
+        bare = without_genomes(spn)
         context = multiprocessing.get_context("spawn")  # no fork of a process that runs threads
         self._pipes: list[Connection] = []
         self._processes: list[multiprocessing.process.BaseProcess] = []

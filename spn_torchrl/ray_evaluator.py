@@ -10,7 +10,6 @@ Only this module imports Ray, and only :func:`spn_torchrl.evaluate.ray_evaluator
 
 from __future__ import annotations
 
-import copy
 import logging
 import time
 from pathlib import Path
@@ -23,7 +22,7 @@ from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
 from spn_torchrl.evaluate import Episodes, evaluation_slots
 from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import ShardWorker, encode_genomes, merge, shard_bounds
+from spn_torchrl.shards import ShardWorker, encode_genomes, merge, shard_bounds, without_genomes
 
 log = logging.getLogger("spn_torchrl")
 
@@ -117,10 +116,8 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
     population = evaluation_slots(cfg.algo)
     capacities = [stop - start for start, stop in shard_bounds(population, ev.num_actors)]
     options = {"num_cpus": ev.num_cpus_per_actor, "max_restarts": ev.max_restarts, "max_task_retries": ev.max_restarts}
-    # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts;
-    # a copy without the effective weights of an earlier set_genomes, which would only add bytes
-    bare = copy.copy(spn)
-    bare.w1_eff = bare.w2_eff = None
+    # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts
+    bare = without_genomes(spn)
     actors = [
         ShardActor.options(**options).remote(bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps)
         for size in capacities

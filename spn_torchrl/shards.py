@@ -8,6 +8,7 @@ the episode the one-process evaluator gives it.
 
 from __future__ import annotations
 
+import copy
 import math
 import resource
 
@@ -50,6 +51,14 @@ def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> t
         # scores of +-inf give sigmoid 1 or 0: the same mask for any threshold in (0, 1)
         return torch.where(bits, math.inf, -math.inf)
     return torch.tensor(payload)
+
+
+def without_genomes(spn: PopulationSPN) -> PopulationSPN:
+    """What a worker receives once: the SPN with its fixed weights only (the effective weights of an
+    earlier genome set would only add bytes)."""
+    bare = copy.copy(spn)
+    bare.w1_eff = bare.w2_eff = None
+    return bare
 
 
 def merge(parts: list[Results]) -> Episodes:
