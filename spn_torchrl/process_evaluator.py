@@ -19,7 +19,7 @@ import torch
 from spn_torchrl.errors import EvaluatorError, SpnError
 from spn_torchrl.evaluate import Episodes
 from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import Results, ShardWorker, encode_genomes, merge, shard_bounds, without_genomes
+from spn_torchrl.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
 
 
 def spawn_blocked_by() -> str | None:
@@ -94,15 +94,12 @@ class ProcessEvaluator:
             raise
 
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
-        count = genomes.shape[0]
-        if not 0 < count <= self.capacity:
-            raise ValueError(f"the evaluator processes hold {self.capacity} individuals, got {count} genomes")
-        payload = encode_genomes(self.spn, genomes)
         asked = []
-        for index, (start, stop) in enumerate(shard_bounds(count, len(self._pipes))):
-            if stop > start:
-                self._send(index, ("evaluate", (payload[start:stop], seed + start)), "evaluate")
-                asked.append(index)
+        for index, _, _, shard, shard_seed in shard_requests(
+            self.spn, genomes, seed, len(self._pipes), self.capacity, "evaluator processes"
+        ):
+            self._send(index, ("evaluate", (shard, shard_seed)), "evaluate")
+            asked.append(index)
         return merge([self._receive(index, None, "evaluate") for index in asked])
 
     def gather(self, query: str) -> list:

@@ -22,7 +22,7 @@ from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
 from spn_torchrl.evaluate import Episodes, evaluation_slots
 from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import ShardWorker, encode_genomes, merge, shard_bounds, without_genomes
+from spn_torchrl.shards import ShardWorker, merge, shard_bounds, shard_requests, without_genomes
 
 log = logging.getLogger("spn_torchrl")
 
@@ -44,16 +44,12 @@ class RayEvaluator:
         self.bytes_received = 0  # returns, steps, spikes, every call
 
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
-        count = genomes.shape[0]
-        if not 0 < count <= self.capacity:
-            raise ValueError(f"the Ray actors hold {self.capacity} individuals, got {count} genomes")
-        payload = encode_genomes(self.spn, genomes)
         calls = []
-        for index, (start, stop) in enumerate(shard_bounds(count, len(self.actors))):
-            if stop > start:
-                shard = payload[start:stop]
-                self.bytes_sent += shard.nbytes + 8  # + the int64 seed
-                calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, seed + start)))
+        for index, start, stop, shard, shard_seed in shard_requests(
+            self.spn, genomes, seed, len(self.actors), self.capacity, "Ray actors"
+        ):
+            self.bytes_sent += shard.nbytes + 8  # + the int64 seed
+            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seed)))
         deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
         return merge([self._collect(*call, deadline) for call in calls])
 

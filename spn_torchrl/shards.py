@@ -44,6 +44,19 @@ def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
     return np.ascontiguousarray(genomes.detach().to(torch.float32).cpu().numpy())
 
 
+def shard_requests(
+    spn: PopulationSPN, genomes: torch.Tensor, seed: int, parts: int, capacity: int, holders: str
+) -> list[tuple[int, int, int, np.ndarray, int]]:
+    """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, its env
+    seed ``seed + start``) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
+    count = genomes.shape[0]
+    if not 0 < count <= capacity:
+        raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
+    payload = encode_genomes(spn, genomes)
+    bounds = enumerate(shard_bounds(count, parts))
+    return [(index, start, stop, payload[start:stop], seed + start) for index, (start, stop) in bounds if stop > start]
+
+
 def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
     """Genomes [B, D] that give the SPN exactly the masks (or weights) :func:`encode_genomes` sent."""
     if genome_kind == "connections":
