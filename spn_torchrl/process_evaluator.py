@@ -8,6 +8,7 @@ it at every step. The episodes are the one-process evaluator's, bit for bit.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import signal
 import time
@@ -35,20 +36,17 @@ def _serve(conn: Connection, spn: PopulationSPN, *worker_args: Any) -> None:
     """A worker process: build the shard's env, then answer requests until told to stop or orphaned."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle; it stops the workers
     try:
-        try:
-            worker = ShardWorker(spn, *worker_args)
-            conn.send(("ok", worker.ready()))
-            while (request := conn.recv()) is not None:
-                method, args = request
-                conn.send(("ok", getattr(worker, method)(*args)))
-        except SpnError as err:
-            conn.send(("error", err))
-        except (EOFError, BrokenPipeError):
-            raise
-        except Exception as err:  # reported to the parent, with its type, which raises it there
-            conn.send(("error", EvaluatorError(f"{type(err).__name__}: {err}")))
+        worker = ShardWorker(spn, *worker_args)
+        conn.send(("ok", worker.ready()))
+        while (request := conn.recv()) is not None:
+            method, args = request
+            conn.send(("ok", getattr(worker, method)(*args)))
     except (EOFError, BrokenPipeError):  # the parent is gone
         return
+    except Exception as err:  # reported to the parent, which raises it there
+        error = err if isinstance(err, SpnError) else EvaluatorError(f"{type(err).__name__}: {err}")
+        with contextlib.suppress(OSError):
+            conn.send(("error", error))
 
 
 class ProcessEvaluator:
