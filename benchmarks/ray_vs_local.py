@@ -16,22 +16,27 @@ from pathlib import Path
 import torch
 from hydra import compose, initialize_config_dir
 
-from spn_torchrl import ga
 from spn_torchrl.config import register_configs, validate
 from spn_torchrl.envs import task_spec
-from spn_torchrl.evaluate import Episodes, episode_seed, make_evaluator
-from spn_torchrl.policies import spn_from_config
-from spn_torchrl.policies import init_fixed_weights
+from spn_torchrl.evaluation import make_evaluator
+from spn_torchrl.evaluation.rollout import Episodes
+from spn_torchrl.seeds import episode_seed
+from spn_torchrl.snn.policies import init_fixed_weights, spn_from_config
+from spn_torchrl.training import ga
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 
 
-def generation(evaluator, parents: torch.Tensor, k: int, episodes: int, seed: int, sigma: float) -> tuple[float, Episodes]:
-    """Wall time and episodes of one steady-state generation as spn_torchrl.evolve runs it: one call with
+def generation(
+    evaluator, parents: torch.Tensor, k: int, episodes: int, seed: int, sigma: float
+) -> tuple[float, Episodes]:
+    """Wall time and episodes of one steady-state generation as spn_torchrl.training.evolve runs it: one call with
     the children and the parents' elite candidates (the parents' own rollout runs first, untimed)."""
     fitness = evaluator(parents, episode_seed(seed, 1, 0)).returns
     candidates = ga.elite_candidates(fitness, k)
-    children = ga.next_generation(parents, fitness, sigma=sigma, truncation=0.25, generator=torch.Generator().manual_seed(seed))
+    children = ga.next_generation(
+        parents, fitness, sigma=sigma, truncation=0.25, generator=torch.Generator().manual_seed(seed)
+    )
     genomes = torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)])
     before = {key: getattr(evaluator, key, 0) for key in ("bytes_sent", "bytes_received")}
     t0 = time.perf_counter()
@@ -113,7 +118,9 @@ def main() -> None:
         "ray": remote,
         "ray_overhead_s": round(remote["generation_s"] - local["generation_s"], 2),
         "identical_episodes": identical,
-        "float32_genome_bytes_per_generation": 4 * spn.genome_size * (args.population + ray_cfg.algo.elite_candidates * ray_cfg.algo.elite_episodes),
+        "float32_genome_bytes_per_generation": 4
+        * spn.genome_size
+        * (args.population + ray_cfg.algo.elite_candidates * ray_cfg.algo.elite_episodes),
     }
     print(json.dumps(report, indent=2))
 

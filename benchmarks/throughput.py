@@ -6,7 +6,7 @@
 HumanoidStandup.)
 
 Measures on the same cores: (a) the ceiling, batched physics only (one mujoco.batch on processes x threads
-threads, random controls); (b) one GA generation per backend as spn_torchrl.evolve runs it with the default
+threads, random controls); (b) one GA generation per backend as spn_torchrl.training.evolve runs it with the default
 evaluator (the population and the previous generation's elite re-evaluation in one rollout, then selection);
 (c) the paper's way, one Gymnasium env and one single-policy SPN call per step that computes the masks (as
 the authors' code did), on a short slice, and the same loop with masks computed once. The last line is
@@ -27,12 +27,12 @@ import torch
 from mujoco.batch import Batch
 from omegaconf import DictConfig, OmegaConf
 
-from spn_torchrl import ga, neurons
 from spn_torchrl.envs import TASKS, task_spec
-from spn_torchrl.evaluate import machine_evaluator
-from spn_torchrl.mujoco_batch import MujocoBatchEnv, batch_task
-from spn_torchrl.process_evaluator import ProcessEvaluator
-from spn_torchrl.policies import PopulationSPN, init_fixed_weights
+from spn_torchrl.envs.mujoco import MujocoBatchEnv, batch_task
+from spn_torchrl.evaluation import machine_evaluator
+from spn_torchrl.evaluation.processes import ProcessEvaluator
+from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
+from spn_torchrl.training import ga, neurons
 
 
 def ceiling(env_id: str, population: int, threads: int, steps: int, repeats: int = 3) -> float:
@@ -80,7 +80,7 @@ class Generation:
 def generation(
     env_id: str, backend: str, population: int, threads: int, episode_steps: int, processes: int = 1
 ) -> Generation:
-    """One GA generation of SPEC.md as spn_torchrl.evolve runs it in the steady state: one rollout of the N
+    """One GA generation of SPEC.md as spn_torchrl.training.evolve runs it in the steady state: one rollout of the N
     children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection, on the evaluator
     that ``env.processes=processes`` builds. The physics-alone rate divides its steps by the longest
     physics wall time of one shard (the shards' physics runs side by side)."""
@@ -151,7 +151,9 @@ def main() -> None:
     parser.add_argument("--env", default="HalfCheetah-v5")
     parser.add_argument("--population", type=int, default=200)
     parser.add_argument("--processes", type=int, help="evaluator processes (env.processes; default: the task config's)")
-    parser.add_argument("--threads", type=int, help="physics threads per process (env.num_workers; default: the task config's)")
+    parser.add_argument(
+        "--threads", type=int, help="physics threads per process (env.num_workers; default: the task config's)"
+    )
     parser.add_argument("--paper-steps", type=int, default=3000, help="env steps of the paper-way slice")
     parser.add_argument("--ceiling-steps", type=int, default=300, help="batched env steps of the ceiling run")
     parser.add_argument("--episode-steps", type=int, default=1000, help="episode cut of the mujoco_batch generation")
@@ -187,7 +189,9 @@ def main() -> None:
     paper = paper_way(args.env, args.paper_steps)
     print(f"paper way (1 env, 1 policy call per step, masks computed in every call): {paper:,.0f} env steps/s")
     premasked = paper_way(args.env, args.paper_steps, mask_every_step=False)
-    print(f"  the same with the masks computed once: {premasked:,.0f} env steps/s (mujoco_batch: {batch_sps / premasked:.1f}x)")
+    print(
+        f"  the same with the masks computed once: {premasked:,.0f} env steps/s (mujoco_batch: {batch_sps / premasked:.1f}x)"
+    )
     print(
         f"peak memory (maxrss): {peak_memory_mb() + batch.worker_memory_mb:,.0f} MB in all; this process "
         f"{peak_memory_mb():,.0f} MB, the mujoco_batch generation's worker processes {batch.worker_memory_mb:,.0f} MB "

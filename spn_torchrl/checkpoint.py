@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import torch
 
@@ -11,6 +12,8 @@ from spn_torchrl.errors import CheckpointError
 from spn_torchrl.records import save_torch_atomic
 
 CHECKPOINT_NAME = "checkpoint.pt"
+GA_FORMAT = "spn_torchrl.ga/2"  # /2: the pending re-evaluation is part of the state
+PPO_FORMAT = "spn_torchrl.ppo/1"
 
 
 def save(state: Mapping[str, Any], run_dir: Path) -> Path:

@@ -142,7 +142,10 @@ def _require(ok: bool, message: str) -> None:
 
 def validate_ga(algo: DictConfig) -> None:
     """One clear sentence per bad GA value, naming the field and the allowed range."""
-    _require(algo.genome in ("connections", "weights"), f"algo.genome must be 'connections' or 'weights', got {algo.genome!r}")
+    _require(
+        algo.genome in ("connections", "weights"),
+        f"algo.genome must be 'connections' or 'weights', got {algo.genome!r}",
+    )
     _require(algo.generations >= 1, f"algo.generations must be >= 1, got {algo.generations}")
     _require(
         algo.population >= 2 and algo.population % 2 == 0,
@@ -176,7 +179,7 @@ def validate_ga(algo: DictConfig) -> None:
 
 def validate_ppo(algo: DictConfig) -> None:
     """One clear sentence per bad PPO value, naming the field and the allowed range."""
-    from spn_torchrl.surrogate import SURROGATES
+    from spn_torchrl.snn.surrogate import SURROGATES
 
     _require(algo.policy in ("dpn", "spn"), f"algo.policy must be 'dpn' or 'spn', got {algo.policy!r}")
     _require(algo.frames_per_batch >= 1, f"algo.frames_per_batch must be >= 1, got {algo.frames_per_batch}")
@@ -213,7 +216,10 @@ def validate_ray_evaluator(evaluator: DictConfig, population: int) -> None:
         1 <= evaluator.num_actors <= population,
         f"evaluator.num_actors must be in [1, algo.population={population}], got {evaluator.num_actors}",
     )
-    _require(evaluator.num_cpus_per_actor > 0, f"evaluator.num_cpus_per_actor must be > 0, got {evaluator.num_cpus_per_actor}")
+    _require(
+        evaluator.num_cpus_per_actor > 0,
+        f"evaluator.num_cpus_per_actor must be > 0, got {evaluator.num_cpus_per_actor}",
+    )
     _require(evaluator.max_restarts >= 0, f"evaluator.max_restarts must be >= 0, got {evaluator.max_restarts}")
     _require(evaluator.start_timeout_s > 0, f"evaluator.start_timeout_s must be > 0, got {evaluator.start_timeout_s}")
     _require(
@@ -228,7 +234,7 @@ def validate(cfg: DictConfig) -> None:
     _require(kind in ALGO_VALIDATORS, f"algo.kind must be one of {sorted(ALGO_VALIDATORS)}, got {kind!r}")
     ALGO_VALIDATORS[kind](cfg.algo)
     from spn_torchrl.envs import BACKENDS
-    from spn_torchrl.evaluate import EVALUATORS
+    from spn_torchrl.evaluation import EVALUATORS
 
     _require(
         cfg.evaluator.name in EVALUATORS,
@@ -241,7 +247,10 @@ def validate(cfg: DictConfig) -> None:
             1 <= cfg.env.processes <= cfg.algo.population,
             f"env.processes must be in [1, algo.population={cfg.algo.population}], got {cfg.env.processes}",
         )
-        _require(cfg.evaluator.start_timeout_s > 0, f"evaluator.start_timeout_s must be > 0, got {cfg.evaluator.start_timeout_s}")
+        _require(
+            cfg.evaluator.start_timeout_s > 0,
+            f"evaluator.start_timeout_s must be > 0, got {cfg.evaluator.start_timeout_s}",
+        )
 
     _require(
         cfg.env.backend in BACKENDS,

@@ -29,5 +29,5 @@ def require(module: str, extra: str):
         return importlib.import_module(module)
     except ImportError:
         raise DependencyError(
-            f"{module} is not installed: install the optional extra with pip install -e \".[{extra}]\""
+            f'{module} is not installed: install the optional extra with pip install -e ".[{extra}]"'
         ) from None

@@ -8,8 +8,9 @@ import logging
 import netrc
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import torch
 from omegaconf import DictConfig, OmegaConf
@@ -47,7 +48,9 @@ class Progress:
         self.path = Path(path)
         self.rows: list[dict[str, Any]] = read_progress(self.path)[:keep_rows] if keep_rows else []
         if keep_rows and len(self.rows) < keep_rows:
-            log.warning("%s holds %d rows, the checkpoint %d: earlier rows are missing", path, len(self.rows), keep_rows)
+            log.warning(
+                "%s holds %d rows, the checkpoint %d: earlier rows are missing", path, len(self.rows), keep_rows
+            )
         if self.path.exists():
             self._write()
 

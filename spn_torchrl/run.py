@@ -44,11 +44,11 @@ def run(cfg: DictConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
     torch.set_num_threads(cfg.torch_threads)
     kind = cfg.algo.kind
     if kind == "ga":
-        from spn_torchrl.evolve import evolve
+        from spn_torchrl.training.evolve import evolve
 
         return evolve(cfg, out, run_name(cfg))
     if kind == "ppo":
-        from spn_torchrl.ppo import train_ppo
+        from spn_torchrl.training.ppo import train_ppo
 
         return train_ppo(cfg, out, run_name(cfg))
     raise AssertionError(f"validate() let algo.kind={kind!r} through")

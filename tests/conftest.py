@@ -20,7 +20,9 @@ def train_command(run_dir: Path, *overrides: str) -> list[str]:
 def run_train(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.CompletedProcess:
     """Run train.py into ``run_dir``; with ``check``, fail the test with its output if it fails."""
     env = {**os.environ, "WANDB_MODE": "offline", "WANDB_SILENT": "true"}
-    proc = subprocess.run(train_command(run_dir, *overrides), cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        train_command(run_dir, *overrides), cwd=ROOT, env=env, capture_output=True, text=True, timeout=600
+    )
     if check and proc.returncode != 0:
         pytest.fail(f"train.py failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc
@@ -39,6 +41,11 @@ def halfcheetah_run(tmp_path_factory) -> Path:
     """HalfCheetah, 1 generation of 2 (the smallest real run: 3 episodes of 1000 steps)."""
     run_dir = tmp_path_factory.mktemp("runs") / "halfcheetah"
     run_train(
-        run_dir, "env=halfcheetah", "algo.generations=1", "algo.population=2", "algo.elite_candidates=1", "algo.elite_episodes=1"
+        run_dir,
+        "env=halfcheetah",
+        "algo.generations=1",
+        "algo.population=2",
+        "algo.elite_candidates=1",
+        "algo.elite_episodes=1",
     )
     return run_dir

@@ -8,11 +8,11 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from spn_torchrl.cartpole_batch import CartPoleBatchEnv
 from spn_torchrl.envs import make_batched_env, task_spec
+from spn_torchrl.envs.cartpole import CartPoleBatchEnv
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import PopulationEvaluator
-from spn_torchrl.policies import PopulationSPN, init_fixed_weights
+from spn_torchrl.evaluation.rollout import PopulationEvaluator
+from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
 
 
 def test_steps_resets_and_ends_match_gymnasium() -> None:
@@ -72,7 +72,9 @@ def test_spn_returns_match_gymnasium_backend() -> None:
     genomes = torch.randn(30, spn.genome_size, generator=gen)
     results = {}
     for backend in ("gymnasium", "cartpole_batch"):
-        evaluator = PopulationEvaluator(make_batched_env("CartPole-v1", 32, backend=backend), spn, spec.max_episode_steps)
+        evaluator = PopulationEvaluator(
+            make_batched_env("CartPole-v1", 32, backend=backend), spn, spec.max_episode_steps
+        )
         results[backend] = evaluator(genomes, seed=7)
         evaluator.close()
     ref, got = results["gymnasium"], results["cartpole_batch"]

@@ -31,7 +31,14 @@ def test_defaults_are_the_papers():
     cfg = make()
     a = cfg.algo
     assert (a.generations, a.population, a.sigma, a.truncation, a.score_threshold) == (100, 200, 0.01, 0.25, 0.5)
-    assert (a.elite_candidates, a.elite_episodes, a.hidden, a.time_steps, a.decay, a.v_threshold) == (10, 10, 64, 4, 0.75, 0.5)
+    assert (a.elite_candidates, a.elite_episodes, a.hidden, a.time_steps, a.decay, a.v_threshold) == (
+        10,
+        10,
+        64,
+        4,
+        0.75,
+        0.5,
+    )
     assert a.elitism == 0 and cfg.env.id == "CartPole-v1" and cfg.logger.backend == "csv"
     assert make("algo=weights_ga").algo.init_from_fixed_weights is False
 

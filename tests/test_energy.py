@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from spn_torchrl import energy
+from spn_torchrl.analysis import energy
 
 TASKS = {"HalfCheetah": (17, 6), "Swimmer": (8, 2), "HumanoidStandup": (376, 17)}
 PAPER_DPN = {"HalfCheetah": 6.77e3, "Swimmer": 2.94e3, "HumanoidStandup": 1.16e5}

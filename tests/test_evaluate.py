@@ -4,12 +4,13 @@ import pytest
 import torch
 from torchrl.envs import TransformedEnv
 
-from spn_torchrl import ga
 from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
 from spn_torchrl.errors import ConfigError, EvaluatorError
-from spn_torchrl.evaluate import PopulationEvaluator, episode_seed
-from spn_torchrl.process_evaluator import ProcessEvaluator
-from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights
+from spn_torchrl.evaluation.processes import ProcessEvaluator
+from spn_torchrl.evaluation.rollout import PopulationEvaluator
+from spn_torchrl.seeds import episode_seed
+from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights
+from spn_torchrl.training import ga
 
 
 def setup(env_id, size, sigma):
@@ -91,7 +92,9 @@ def test_two_worker_processes_give_the_same_episodes_for_the_first_workers_slots
     assert part.returns.shape == (6,) and torch.equal(part.returns, b.returns[:6])
 
 
-@pytest.mark.parametrize("env_id,backend,processes", [("CartPole-v1", "cartpole_batch", 3), ("Swimmer-v5", "mujoco_batch", 2)])
+@pytest.mark.parametrize(
+    "env_id,backend,processes", [("CartPole-v1", "cartpole_batch", 3), ("Swimmer-v5", "mujoco_batch", 2)]
+)
 def test_worker_processes_give_the_one_process_episodes(env_id, backend, processes):
     spec, spn, genomes, _ = setup(env_id, 7, 1.0)
     steps = 40 if backend == "mujoco_batch" else spec.max_episode_steps
@@ -101,7 +104,9 @@ def test_worker_processes_give_the_one_process_episodes(env_id, backend, process
         assert [p.is_alive() for p in many._processes] == [True] * processes
         for count in (7, 5, 2):  # a full set, a partial one, fewer genomes than processes
             a, b = one(genomes[:count], seed=9), many(genomes[:count], seed=9)
-            assert torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+            assert (
+                torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+            )
         with pytest.raises(ValueError, match="hold 7 individuals"):
             many(torch.zeros(8, spn.genome_size), 0)
         assert len(many.gather("peak_memory_mb")) == processes
@@ -118,7 +123,9 @@ def test_a_worker_process_that_cannot_build_its_env_raises_its_error():
         ProcessEvaluator(spn, "CartPole-v1", 4, "cartpole_batch", 2, spec.max_episode_steps, 2)
 
 
-@pytest.mark.parametrize("env_id,backend,steps", [("CartPole-v1", "cartpole_batch", 500), ("Swimmer-v5", "mujoco_batch", 30)])
+@pytest.mark.parametrize(
+    "env_id,backend,steps", [("CartPole-v1", "cartpole_batch", 500), ("Swimmer-v5", "mujoco_batch", 30)]
+)
 def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, backend, steps):
     spec, spn, genomes, _ = setup(env_id, 6, 1.0)
     direct = PopulationEvaluator(make_batched_env(env_id, 6, backend=backend), spn, steps)
@@ -128,7 +135,9 @@ def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, bac
     try:
         for count in (6, 4):
             a, b = direct(genomes[:count], seed=3), through_torchrl(genomes[:count], seed=3)
-            assert torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+            assert (
+                torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
+            )
         if backend == "cartpole_batch":
             assert len(set(a.steps.tolist())) > 1  # episodes ended at different steps: the masks were used
     finally:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from spn_torchrl.elite import load_elite
-from spn_torchrl.play import run_episode
+from spn_torchrl.tools.elite import load_elite
+from spn_torchrl.tools.play import run_episode
 
 nir = pytest.importorskip("nir")
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,8 +41,11 @@ def simulate(graph, observations: np.ndarray) -> np.ndarray:
     assert graph.metadata["readout"] == "max_over_time"
     x = observations.astype(np.float32)
     order = topological(graph)
-    state = {name: np.zeros((x.shape[0], node.tau.shape[0]), np.float32)
-             for name, node in graph.nodes.items() if isinstance(node, (nir.LIF, nir.LI))}
+    state = {
+        name: np.zeros((x.shape[0], node.tau.shape[0]), np.float32)
+        for name, node in graph.nodes.items()
+        if isinstance(node, (nir.LIF, nir.LI))
+    }
     readout = None
     for _ in range(steps):
         values = {}
@@ -91,7 +94,9 @@ def actions_of(graph, observations: torch.Tensor) -> torch.Tensor:
     out = torch.as_tensor(simulate(graph, observations.numpy()))
     if graph.metadata["action"] == "argmax":
         return out.argmax(-1)
-    return torch.clamp(out, torch.as_tensor(graph.metadata["action_low"]), torch.as_tensor(graph.metadata["action_high"]))
+    return torch.clamp(
+        out, torch.as_tensor(graph.metadata["action_low"]), torch.as_tensor(graph.metadata["action_high"])
+    )
 
 
 @pytest.mark.parametrize("run", ["halfcheetah_run", "cartpole_run"])
@@ -108,7 +113,9 @@ def test_nir_round_trip_acts_like_the_spn(run, request, tmp_path):
     observations = recorded_observations(elite, 1000)
     elite.spn.set_genomes(elite.genome[None].expand(len(observations), -1))
     expected, _ = elite.spn(observations)
-    assert torch.equal(actions_of(graph, observations), expected)
+    # float32 matrix products round by the kernel that sums them (numpy's here, torch's bmm in the SPN): the
+    # actions agree to rounding, not always bit for bit
+    torch.testing.assert_close(actions_of(graph, observations), expected, rtol=0, atol=1e-5)
 
 
 def test_export_errors_are_one_sentence(cartpole_run, tmp_path):

@@ -1,6 +1,6 @@
 import torch
 
-from spn_torchrl import ga
+from spn_torchrl.training import ga
 
 
 def gen(seed=0):

@@ -9,10 +9,10 @@ import torch
 from tensordict import TensorDict
 
 from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.envs.mujoco import MujocoBatchEnv
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import PopulationEvaluator
-from spn_torchrl.mujoco_batch import MujocoBatchEnv
-from spn_torchrl.policies import PopulationSPN, init_fixed_weights
+from spn_torchrl.evaluation.rollout import PopulationEvaluator
+from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
 
 TASKS = ["HalfCheetah-v5", "Swimmer-v5", "HumanoidStandup-v5"]
 TOL = 1e-6

@@ -3,7 +3,7 @@ import math
 import pytest
 import torch
 
-from spn_torchrl.neurons import (
+from spn_torchrl.snn.neurons import (
     li_step,
     lif_spikes,
     lif_step,
@@ -54,20 +54,25 @@ def test_state_starts_at_zero_each_call():
 
 
 @pytest.mark.parametrize(
-    "time_steps,decay,v_th", [(4, 0.75, 0.5), (1, 0.75, 0.5), (7, 0.9, 0.3), (5, 0.0, 0.5), (6, 1.0, -0.2), (8, 0.5, 0.0)]
+    "time_steps,decay,v_th",
+    [(4, 0.75, 0.5), (1, 0.75, 0.5), (7, 0.9, 0.3), (5, 0.0, 0.5), (6, 1.0, -0.2), (8, 0.5, 0.0)],
 )
 def test_threshold_spikes_equal_the_lif_steps(time_steps, decay, v_th):
     thresholds = spike_thresholds(time_steps, decay, v_th)
     pattern = spike_pattern(time_steps)
     finite = thresholds[thresholds.isfinite()]
-    edges = torch.cat([finite, torch.nextafter(finite, torch.tensor(-math.inf)), torch.nextafter(finite, torch.tensor(math.inf))])
+    edges = torch.cat(
+        [finite, torch.nextafter(finite, torch.tensor(-math.inf)), torch.nextafter(finite, torch.tensor(math.inf))]
+    )
     generator = torch.Generator().manual_seed(0)
-    current = torch.cat([
-        torch.randn(100_000, generator=generator) * 0.5,
-        torch.rand(100_000, generator=generator) * 0.6 - 0.05,
-        edges,
-        torch.tensor([0.0, -0.0, math.nan, 1e30, -1e30, torch.finfo(torch.float32).tiny]),
-    ])
+    current = torch.cat(
+        [
+            torch.randn(100_000, generator=generator) * 0.5,
+            torch.rand(100_000, generator=generator) * 0.6 - 0.05,
+            edges,
+            torch.tensor([0.0, -0.0, math.nan, 1e30, -1e30, torch.finfo(torch.float32).tiny]),
+        ]
+    )
     current = torch.cat([current, torch.zeros((-len(current)) % 8)]).view(-1, 8)  # [N, h]
     want = lif_spikes(current, time_steps, decay, v_th)
     got = threshold_spikes(current, thresholds, pattern)

@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from spn_torchrl.elite import load_elite
 from spn_torchrl.errors import SpnError
-from spn_torchrl.play import find_gl_backend, replay, run_episode, summary
 from spn_torchrl.records import read_progress
+from spn_torchrl.tools.elite import load_elite
+from spn_torchrl.tools.play import find_gl_backend, replay, run_episode, summary
 
 ROOT = Path(__file__).resolve().parents[1]
 

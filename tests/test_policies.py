@@ -3,8 +3,8 @@ import math
 import pytest
 import torch
 
-from spn_torchrl.neurons import spn_dynamics
-from spn_torchrl.policies import PopulationSPN, build_spn, init_fixed_weights, spn_module
+from spn_torchrl.snn.neurons import spn_dynamics
+from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights, spn_module
 
 
 def make(kind="connections", n=5, m=3, h=64, seed=0, **kw):
@@ -51,7 +51,9 @@ def test_batched_forward_equals_single_forwards(kind):
     spn.set_genomes(genomes)
     actions, spikes = spn(obs)
     for i in range(8):
-        single = build_spn(spn.w1, spn.w2, genomes[i], genome_kind=kind, action_low=-torch.ones(6), action_high=torch.ones(6))
+        single = build_spn(
+            spn.w1, spn.w2, genomes[i], genome_kind=kind, action_low=-torch.ones(6), action_high=torch.ones(6)
+        )
         a, s = single(obs[i : i + 1])
         assert torch.allclose(actions[i], a[0], atol=1e-6) and spikes[i] == s[0]
 

@@ -13,11 +13,11 @@ from hydra import compose, initialize_config_dir
 from spn_torchrl import ConfigError, run
 from spn_torchrl.config import register_configs, validate
 from spn_torchrl.envs import make_population_env, task_spec
-from spn_torchrl.evaluate import episode_seed
-from spn_torchrl.policies import PopulationSPN, TrainableSPN, init_fixed_weights
-from spn_torchrl.ppo import evaluate_policy, load_actor, make_actor, make_critic
 from spn_torchrl.records import read_progress
-from spn_torchrl.surrogate import surrogate_spike
+from spn_torchrl.seeds import episode_seed
+from spn_torchrl.snn.policies import PopulationSPN, TrainableSPN, init_fixed_weights
+from spn_torchrl.snn.surrogate import surrogate_spike
+from spn_torchrl.training.ppo import evaluate_policy, load_actor, make_actor, make_critic
 
 ROOT = Path(__file__).resolve().parents[1]
 register_configs()
@@ -162,9 +162,17 @@ def test_deterministic_eval_from_checkpoint_matches_the_logged_return(tmp_path: 
 def test_dpn_ppo_improves_cartpole_through_train_py(tmp_path: Path) -> None:
     """A real run of the entry point: 6 iterations of 1000 steps with a higher learning rate (~30 s)."""
     cmd = [
-        sys.executable, str(ROOT / "train.py"), "algo=dpn_ppo", "env=cartpole", "seed=0",
-        "algo.total_env_steps=6000", "algo.epochs=5", "algo.lr_policy=3e-3", "algo.lr_value=3e-3",
-        "algo.eval_interval=3", f"hydra.run.dir={tmp_path}",
+        sys.executable,
+        str(ROOT / "train.py"),
+        "algo=dpn_ppo",
+        "env=cartpole",
+        "seed=0",
+        "algo.total_env_steps=6000",
+        "algo.epochs=5",
+        "algo.lr_policy=3e-3",
+        "algo.lr_value=3e-3",
+        "algo.eval_interval=3",
+        f"hydra.run.dir={tmp_path}",
     ]
     subprocess.run(cmd, check=True, cwd=tmp_path, capture_output=True, timeout=120)
     rows = read_progress(tmp_path / "progress.csv")

@@ -9,14 +9,14 @@ from hydra import compose, initialize_config_dir
 
 ray = pytest.importorskip("ray", reason="the Ray evaluator needs the ray extra: pip install -e '.[ray]'")
 
-from spn_torchrl import ga  # noqa: E402
 from spn_torchrl.config import register_configs, validate  # noqa: E402
 from spn_torchrl.envs import make_population_env, task_spec  # noqa: E402
 from spn_torchrl.errors import ConfigError, EvaluatorError  # noqa: E402
-from spn_torchrl.evaluate import PopulationEvaluator, make_evaluator  # noqa: E402
-from spn_torchrl.policies import spn_from_config  # noqa: E402
-from spn_torchrl.policies import init_fixed_weights  # noqa: E402
-from spn_torchrl.shards import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
+from spn_torchrl.evaluation import make_evaluator  # noqa: E402
+from spn_torchrl.evaluation.rollout import PopulationEvaluator  # noqa: E402
+from spn_torchrl.evaluation.shards import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
+from spn_torchrl.snn.policies import init_fixed_weights, spn_from_config  # noqa: E402
+from spn_torchrl.training import ga  # noqa: E402
 
 CONF = str(Path(__file__).resolve().parents[1] / "conf")
 register_configs()
@@ -31,7 +31,10 @@ def ray_cluster():
 
 def make_cfg(*overrides):
     with initialize_config_dir(config_dir=CONF, version_base=None):
-        cfg = compose(config_name="config", overrides=["evaluator=ray", "algo.elite_candidates=1", "algo.elite_episodes=1", *overrides])
+        cfg = compose(
+            config_name="config",
+            overrides=["evaluator=ray", "algo.elite_candidates=1", "algo.elite_episodes=1", *overrides],
+        )
     validate(cfg)
     return cfg
 
@@ -81,11 +84,16 @@ def test_encoded_genomes_give_the_same_effective_weights(algo):
 
 
 # 6 on 4 actors: uneven shards (2, 2, 1, 1), and 3 genomes leave one actor idle
-@pytest.mark.parametrize("algo,env,population,actors", [("conn_ga", "cartpole", 10, 2), ("weights_ga", "cartpole", 6, 4)])
+@pytest.mark.parametrize(
+    "algo,env,population,actors", [("conn_ga", "cartpole", 10, 2), ("weights_ga", "cartpole", 6, 4)]
+)
 def test_ray_gives_the_local_evaluators_episodes(ray_cluster, algo, env, population, actors):
     cpus = 2 / actors
     cfg = make_cfg(
-        f"algo={algo}", f"env={env}", f"algo.population={population}", f"evaluator.num_actors={actors}",
+        f"algo={algo}",
+        f"env={env}",
+        f"algo.population={population}",
+        f"evaluator.num_actors={actors}",
         f"evaluator.num_cpus_per_actor={cpus}",
     )
     spec, spn, genomes = setup(cfg)
@@ -156,7 +164,9 @@ def test_an_actor_killed_mid_call_is_restarted_and_its_shard_rerun(ray_cluster):
 
 
 def test_too_many_actors_for_the_cluster_is_a_clear_error(ray_cluster):
-    cfg = make_cfg("algo.population=10", "evaluator.num_actors=3", "evaluator.num_cpus_per_actor=1", "evaluator.start_timeout_s=5")
+    cfg = make_cfg(
+        "algo.population=10", "evaluator.num_actors=3", "evaluator.num_cpus_per_actor=1", "evaluator.start_timeout_s=5"
+    )
     spec, spn, _ = setup(cfg)
     with pytest.raises(EvaluatorError, match=r"[1-3] of 3 Ray actors did not start .*the cluster has 2 CPUs"):
         make_evaluator(cfg, spec, spn)
@@ -172,11 +182,14 @@ def test_bad_ray_settings_are_rejected():
 def test_train_with_ray_logs_what_the_local_evaluator_logs(tmp_path):
     """The entry point end to end: a local Ray cluster started by the run, 2 actors, the same progress rows."""
     from conftest import TINY, run_train
+
     from spn_torchrl.records import read_progress
 
     timing = {"wall_time_s", "steps_per_s"}
     run_train(tmp_path / "local", "env=cartpole", *TINY)
-    run_train(tmp_path / "ray", "env=cartpole", *TINY, "evaluator=ray", "evaluator.num_actors=2", "evaluator.num_cpus=2")
+    run_train(
+        tmp_path / "ray", "env=cartpole", *TINY, "evaluator=ray", "evaluator.num_actors=2", "evaluator.num_cpus=2"
+    )
     local, remote = (read_progress(tmp_path / name / "progress.csv") for name in ("local", "ray"))
     assert len(local) == len(remote) == 2
     for a, b in zip(local, remote):

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spn_torchrl.report import build_report
+from spn_torchrl.analysis.report import build_report
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,7 +20,15 @@ ROOT = Path(__file__).resolve().parents[1]
 def multirun(tmp_path_factory) -> Path:
     """Two real Connections-GA runs on CartPole at the smoke budget."""
     sweep = tmp_path_factory.mktemp("runs") / "multirun"
-    cmd = [sys.executable, "train.py", "-m", "+experiment=smoke", "seed=0,1", "algo.generations=3", f"hydra.sweep.dir={sweep}"]
+    cmd = [
+        sys.executable,
+        "train.py",
+        "-m",
+        "+experiment=smoke",
+        "seed=0,1",
+        "algo.generations=3",
+        f"hydra.sweep.dir={sweep}",
+    ]
     subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, timeout=300)
     return sweep
 
@@ -33,7 +41,15 @@ def write_ppo_fixture(root: Path, final_return: float) -> Path:
     (run / ".hydra" / "config.yaml").write_text(
         "algo:\n  name: dpn_ppo\n  kind: ppo\nenv:\n  name: cartpole\n  id: CartPole-v1\nseed: 0\n"
     )
-    fields = ["iteration", "total_env_steps", "eval_return", "policy_forward", "policy_backward", "value_forward", "value_backward"]
+    fields = [
+        "iteration",
+        "total_env_steps",
+        "eval_return",
+        "policy_forward",
+        "policy_backward",
+        "value_forward",
+        "value_backward",
+    ]
     with open(run / "progress.csv", "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(fields)
@@ -103,7 +119,9 @@ def test_data_efficiency_at_a_given_ppo_level(multirun, tmp_path):
     assert eff["E"] == pytest.approx(used)
     assert eff["gamma"] == pytest.approx(used / 1e6)
     assert result["tasks"]["cartpole"]["optim"]["conn_ga"]["env_steps"] == pytest.approx(used)
-    unreachable = build_report([multirun], tmp_path / "hi", level=1e9)["tasks"]["cartpole"]["data_efficiency"]["conn_ga"]
+    unreachable = build_report([multirun], tmp_path / "hi", level=1e9)["tasks"]["cartpole"]["data_efficiency"][
+        "conn_ga"
+    ]
     assert unreachable["G"] is None and "not reached" in (tmp_path / "hi" / "report.md").read_text()
 
 
@@ -124,5 +142,7 @@ def test_runs_logged_to_wandb_send_the_report_there(multirun, tmp_path):
     shutil.copytree(multirun, copy)
     assert build_report([copy], tmp_path / "a")["wandb_projects"] == []
     for config in copy.rglob(".hydra/config.yaml"):
-        config.write_text(config.read_text().replace("backend: csv\n  project: spn_torchrl", "backend: wandb\n  project: my_proj"))
+        config.write_text(
+            config.read_text().replace("backend: csv\n  project: spn_torchrl", "backend: wandb\n  project: my_proj")
+        )
     assert build_report([copy], tmp_path / "b")["wandb_projects"] == ["my_proj"]

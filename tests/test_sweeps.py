@@ -4,14 +4,21 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 from hydra import compose, initialize_config_dir
 
-from conftest import ROOT
 from spn_torchrl.config import register_configs
 from spn_torchrl.records import read_progress
 
 CONF = str(ROOT / "conf")
-SWEEP = ["env=cartpole", "algo=conn_ga", "algo.generations=1", "algo.population=10", "algo.elite_candidates=2", "algo.elite_episodes=5"]
+SWEEP = [
+    "env=cartpole",
+    "algo=conn_ga",
+    "algo.generations=1",
+    "algo.population=10",
+    "algo.elite_candidates=2",
+    "algo.elite_episodes=5",
+]
 register_configs()
 
 
@@ -61,7 +68,14 @@ def run_record_field(name: str, value: str) -> bytes:
 )
 def test_parallel_sweep_runs_share_a_wandb_group_and_are_named_per_seed(tmp_path):
     sweep_dir = tmp_path / "my_sweep"
-    multirun(sweep_dir, "hydra/launcher=parallel", "hydra.launcher.n_jobs=2", "logger=wandb", "logger.mode=offline", "seed=0,1")
+    multirun(
+        sweep_dir,
+        "hydra/launcher=parallel",
+        "hydra.launcher.n_jobs=2",
+        "logger=wandb",
+        "logger.mode=offline",
+        "seed=0,1",
+    )
     for seed in (0, 1):
         record = wandb_run_file(sweep_dir / f"cartpole__conn_ga__{seed}")
         assert run_record_field("run_group", "my_sweep") in record  # the sweep directory's name
@@ -72,7 +86,9 @@ def test_parallel_sweep_runs_share_a_wandb_group_and_are_named_per_seed(tmp_path
 
 def launcher(name: str):
     with initialize_config_dir(config_dir=CONF, version_base=None):
-        return compose(config_name="config", overrides=[f"hydra/launcher={name}"], return_hydra_config=True).hydra.launcher
+        return compose(
+            config_name="config", overrides=[f"hydra/launcher={name}"], return_hydra_config=True
+        ).hydra.launcher
 
 
 @pytest.mark.parametrize(

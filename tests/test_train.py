@@ -5,14 +5,22 @@ import time
 
 import pytest
 import torch
-
 from conftest import ROOT, TINY, run_train, train_command
+
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
 
 COLUMNS = [
-    "generation", "eval_return", "best_fitness", "mean_fitness", "env_steps", "total_env_steps",
-    "wall_time_s", "steps_per_s", "mask_density", "spike_rate",
+    "generation",
+    "eval_return",
+    "best_fitness",
+    "mean_fitness",
+    "env_steps",
+    "total_env_steps",
+    "wall_time_s",
+    "steps_per_s",
+    "mask_density",
+    "spike_rate",
 ]
 TIMING = {"wall_time_s", "steps_per_s"}
 
@@ -38,11 +46,20 @@ def test_train_tiny_budget_writes_progress_checkpoint_and_logs(tmp_path, algo):
 
 
 def test_killed_run_resumes_to_the_same_result(tmp_path):
-    args = ["env=cartpole", "algo.generations=10", "algo.population=20", "algo.elite_candidates=2", "algo.elite_episodes=5", "seed=3"]
+    args = [
+        "env=cartpole",
+        "algo.generations=10",
+        "algo.population=20",
+        "algo.elite_candidates=2",
+        "algo.elite_episodes=5",
+        "seed=3",
+    ]
     full, killed = tmp_path / "full", tmp_path / "killed"
     run_train(full, *args)
 
-    proc = subprocess.Popen(train_command(killed, *args), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        train_command(killed, *args), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 120
     while len(read_progress(killed / "progress.csv")) < 2 and time.time() < deadline and proc.poll() is None:
         time.sleep(0.02)
@@ -87,7 +104,9 @@ def test_existing_run_dir_without_resume_fails_clearly(tmp_path):
 def test_bad_config_value_fails_before_any_env(tmp_path):
     proc = run_train(tmp_path, "algo.population=7", check=False)
     assert proc.returncode != 0 and "Traceback" not in proc.stderr
-    assert proc.stderr.strip().splitlines()[-1] == "error: algo.population must be even and >= 2 (mirrored pairs), got 7"
+    assert (
+        proc.stderr.strip().splitlines()[-1] == "error: algo.population must be even and >= 2 (mirrored pairs), got 7"
+    )
     assert not (tmp_path / "progress.csv").exists()
 
 
@@ -99,7 +118,11 @@ def test_wandb_logger_runs_offline_without_credentials_and_finishes(tmp_path):
     env["HOME"] = str(tmp_path)  # no netrc: logger.mode=auto must choose offline
     proc = subprocess.run(
         train_command(tmp_path / "run", "env=cartpole", "logger=wandb", *TINY),
-        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300,
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     runs = list((tmp_path / "run" / "wandb").glob("offline-run-*"))

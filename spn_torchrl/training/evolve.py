@@ -10,22 +10,23 @@ from typing import Any
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from spn_torchrl import checkpoint, ga
+from spn_torchrl import checkpoint
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import Episodes, episode_seed, make_evaluator, spike_rate
-from spn_torchrl.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.evaluation import make_evaluator
+from spn_torchrl.evaluation.rollout import Episodes, spike_rate
 from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
+from spn_torchrl.seeds import episode_seed
+from spn_torchrl.snn.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.training import ga
 
 log = logging.getLogger("spn_torchrl")
-
-FORMAT = "spn_torchrl.ga/2"  # /2: the pending re-evaluation is part of the state
 
 
 def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
     """What a checkpoint must match to be resumed by this config."""
     return {
-        "format": FORMAT,
+        "format": checkpoint.GA_FORMAT,
         "env_id": spec.env_id,
         "genome": cfg.algo.genome,
         "n_obs": spec.n_obs,
@@ -106,7 +107,10 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             "steps_per_s": round(since_row["steps"] / max(now - since_row["wall"], 1e-9), 1),
             "mask_density": mask_density(mask1, mask2),
             "spike_rate": spike_rate(
-                reeval.spikes[slot : slot + episodes], reeval.steps[slot : slot + episodes], algo.hidden, algo.time_steps
+                reeval.spikes[slot : slot + episodes],
+                reeval.steps[slot : slot + episodes],
+                algo.hidden,
+                algo.time_steps,
             ),
             "synapses_l1": int(mask1.sum()),
             "synapses_l2": int(mask2.sum()),
@@ -118,8 +122,15 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
         log.info(
             "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
-            generation, algo.generations, elite_return, row["best_fitness"], row["mean_fitness"],
-            total_steps, row["steps_per_s"], row["mask_density"], row["spike_rate"],
+            generation,
+            algo.generations,
+            elite_return,
+            row["best_fitness"],
+            row["mean_fitness"],
+            total_steps,
+            row["steps_per_s"],
+            row["mask_density"],
+            row["spike_rate"],
         )
 
     def save(generation: int) -> None:
@@ -152,7 +163,11 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         log.info("run %s in %s", run_name, run_dir)
         wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
-            reeval = [] if pending is None else [ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)]
+            reeval = (
+                []
+                if pending is None
+                else [ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)]
+            )
             result = rollout(torch.cat([population, *reeval]), episode_seed(cfg.seed, generation, 0))
             fitness_eps = result.part(0, n)
             if pending is not None:
@@ -166,7 +181,12 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "candidates": ga.elite_candidates(fitness, k),
             }
             population = ga.next_generation(
-                population, fitness, sigma=algo.sigma, truncation=algo.truncation, generator=generator, elitism=algo.elitism
+                population,
+                fitness,
+                sigma=algo.sigma,
+                truncation=algo.truncation,
+                generator=generator,
+                elitism=algo.elitism,
             )
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone

@@ -2,7 +2,7 @@
 
 Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup: observation, reward
 terms, reset distribution and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and
-masks as :class:`~spn_torchrl.batch_env.BatchEnv`.
+masks as :class:`~spn_torchrl.envs.batch.BatchEnv`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from mujoco.batch import Batch
 from torchrl.data import Bounded
 from torchrl.envs import EnvBase
 
-from spn_torchrl.batch_env import BatchEnv, rows
+from spn_torchrl.envs.batch import BatchEnv, rows
 from spn_torchrl.errors import ConfigError
 
 
@@ -145,7 +145,9 @@ class MujocoBatchEnv(BatchEnv):
             self._contact_forces(ids)
             uph = self.qpos[slots, 2] / self.model.opt.timestep
             quad_ctrl = task.ctrl_cost_weight * np.square(self.ctrl[slots]).sum(-1)
-            impact = np.minimum(IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX)
+            impact = np.minimum(
+                IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX
+            )
             self._reward[slots] = uph - quad_ctrl - impact + 1
         else:
             # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given

@@ -1,11 +1,11 @@
 """Population evaluation on Ray: ``evaluator=ray``.
 
-The population is cut into contiguous shards, one per actor (:mod:`spn_torchrl.shards`). Each actor builds its
+The population is cut into contiguous shards, one per actor (:mod:`spn_torchrl.evaluation.shards`). Each actor builds its
 batched env and SPN once (the fixed weights reach it once, through the object store) and runs its shard, so that
 every individual gets the same episode as in the local evaluator. Per call only the genomes go out (connection
 genomes as packed mask bits) and three numbers per individual come back.
 
-Only this module imports Ray, and only :func:`spn_torchrl.evaluate.ray_evaluator` imports this module.
+Only this module imports Ray, and only :func:`spn_torchrl.evaluation.rollout.ray_evaluator` imports this module.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from omegaconf import DictConfig
 
 from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
-from spn_torchrl.evaluate import Episodes, evaluation_slots
-from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.evaluation.rollout import Episodes, evaluation_slots
+from spn_torchrl.evaluation.shards import ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
 
@@ -31,9 +31,11 @@ ShardActor = ray.remote(ShardWorker)
 
 
 class RayEvaluator:
-    """The :class:`~spn_torchrl.evaluate.Evaluator` over Ray actors; counts the payload bytes it moves."""
+    """The :class:`~spn_torchrl.evaluation.rollout.Evaluator` over Ray actors; counts the payload bytes it moves."""
 
-    def __init__(self, actors: list, capacity: int, spn: PopulationSPN, call_timeout_s: float | None, owns_ray: bool) -> None:
+    def __init__(
+        self, actors: list, capacity: int, spn: PopulationSPN, call_timeout_s: float | None, owns_ray: bool
+    ) -> None:
         self.actors = actors
         self.capacity = capacity
         self.spn = spn
@@ -58,9 +60,13 @@ class RayEvaluator:
         try:
             result = ray.get(ref, timeout=None if deadline is None else max(0.0, deadline - time.monotonic()))
         except ray.exceptions.GetTimeoutError:
-            raise EvaluatorError(f"{where} did not answer within evaluator.call_timeout_s={self.call_timeout_s} s") from None
+            raise EvaluatorError(
+                f"{where} did not answer within evaluator.call_timeout_s={self.call_timeout_s} s"
+            ) from None
         except ray.exceptions.RayActorError as err:
-            raise EvaluatorError(f"{where} died and could not be restarted (evaluator.max_restarts): {_first_line(err)}") from err
+            raise EvaluatorError(
+                f"{where} died and could not be restarted (evaluator.max_restarts): {_first_line(err)}"
+            ) from err
         except ray.exceptions.RayTaskError as err:
             raise EvaluatorError(f"{where} failed: {_first_line(err.cause or err)}") from err
         if any(len(part) != stop - start for part in result):
@@ -94,7 +100,9 @@ def connect(evaluator: DictConfig) -> bool:
         else:
             ray.init(address=evaluator.address, runtime_env=runtime_env)
     except ConnectionError as err:
-        raise EvaluatorError(f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}") from None
+        raise EvaluatorError(
+            f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}"
+        ) from None
     return True
 
 
@@ -115,13 +123,17 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
     # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts
     bare = without_genomes(spn)
     actors = [
-        ShardActor.options(**options).remote(bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps)
+        ShardActor.options(**options).remote(
+            bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps
+        )
         for size in capacities
     ]
     evaluator = RayEvaluator(actors, population, spn, ev.call_timeout_s, owns_ray)
     evaluator.bytes_setup = len(actors) * (spn.w1.nbytes + spn.w2.nbytes)
     try:
-        started, waiting = ray.wait([a.ready.remote() for a in actors], num_returns=len(actors), timeout=ev.start_timeout_s)
+        started, waiting = ray.wait(
+            [a.ready.remote() for a in actors], num_returns=len(actors), timeout=ev.start_timeout_s
+        )
         if waiting:
             raise EvaluatorError(
                 f"{len(waiting)} of {len(actors)} Ray actors did not start within evaluator.start_timeout_s="

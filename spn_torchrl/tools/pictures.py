@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from spn_torchrl.errors import require
-from spn_torchrl.policies import mask_density
+from spn_torchrl.snn.policies import mask_density
 
 
 def _pyplot():
@@ -55,8 +55,9 @@ def connectivity_grid(masks1: torch.Tensor, masks2: torch.Tensor, path: Path, ma
     plt = _pyplot()
     count = masks1.shape[0]
     rows = sorted({int(round(i)) for i in np.linspace(0, count - 1, min(max_rows, count))})
-    fig, axes = plt.subplots(len(rows), 2, figsize=(10, 2.2 * len(rows)), dpi=100, squeeze=False,
-                             gridspec_kw={"width_ratios": [1, 3]})
+    fig, axes = plt.subplots(
+        len(rows), 2, figsize=(10, 2.2 * len(rows)), dpi=100, squeeze=False, gridspec_kw={"width_ratios": [1, 3]}
+    )
     for row, g in zip(axes, rows):
         _mask_axes(fig, row[0], row[1], masks1[g].numpy(), masks2[g].numpy())
         row[0].set_title(f"generation {g + 1}: W1 mask", fontsize=9)

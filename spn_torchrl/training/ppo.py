@@ -28,14 +28,13 @@ from torchrl.objectives.value import GAE
 from spn_torchrl import checkpoint
 from spn_torchrl.envs import TaskSpec, make_population_env, task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.evaluate import episode_seed
-from spn_torchrl.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.records import Progress, logger_run_id, make_logger
-from spn_torchrl.surrogate import surrogate_spike
+from spn_torchrl.seeds import episode_seed
+from spn_torchrl.snn.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
+from spn_torchrl.snn.surrogate import surrogate_spike
 
 log = logging.getLogger("spn_torchrl")
 
-FORMAT = "spn_torchrl.ppo/1"
 COUNTERS = ("policy_forward", "policy_backward", "value_forward", "value_backward", "eval_policy_forward")
 
 
@@ -88,9 +87,7 @@ def make_critic(spec: TaskSpec, hidden: int) -> ValueOperator:
     return ValueOperator(net, in_keys=["observation"])
 
 
-def evaluate_policy(
-    actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int
-) -> tuple[torch.Tensor, int]:
+def evaluate_policy(actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int) -> tuple[torch.Tensor, int]:
     """Undiscounted return of the first episode of each env copy, with the deterministic policy (the mean),
     and the number of policy samples the rollout took."""
     env.set_seed(seed)
@@ -119,7 +116,7 @@ def run_meta(cfg: DictConfig, spec: TaskSpec) -> dict[str, Any]:
     """What a checkpoint must match to be resumed by this config."""
     algo = cfg.algo
     return {
-        "format": FORMAT,
+        "format": checkpoint.PPO_FORMAT,
         "env_id": spec.env_id,
         "policy": algo.policy,
         "n_obs": spec.n_obs,
@@ -281,8 +278,14 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             next_iteration[0] = iteration + 1
             log.info(
                 "iter %d/%d  steps %d  eval %.2f  train %.2f  loss_pi %.4f  loss_v %.4f  %.0f steps/s",
-                iteration, iterations, row["total_env_steps"], eval_return, row["train_return"],
-                row["loss_objective"], row["loss_critic"], row["steps_per_s"],
+                iteration,
+                iterations,
+                row["total_env_steps"],
+                eval_return,
+                row["train_return"],
+                row["loss_objective"],
+                row["loss_critic"],
+                row["steps_per_s"],
             )
     finally:
         collector.shutdown()

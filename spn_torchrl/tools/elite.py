@@ -11,8 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 from spn_torchrl import checkpoint
 from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import CheckpointError, SpnError
-from spn_torchrl.evolve import FORMAT
-from spn_torchrl.policies import PopulationSPN, spn_from_config
+from spn_torchrl.snn.policies import PopulationSPN, spn_from_config
 
 
 @dataclass
@@ -48,8 +47,10 @@ def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
     if not run_dir.exists():
         raise SpnError(f"run directory {run_dir} does not exist")
     state = checkpoint.load(run_dir)
-    if state["meta"].get("format") != FORMAT:
-        raise CheckpointError(f"{run_dir} holds a {state['meta'].get('format')!r} checkpoint, not a GA run ({FORMAT})")
+    if state["meta"].get("format") != checkpoint.GA_FORMAT:
+        raise CheckpointError(
+            f"{run_dir} holds a {state['meta'].get('format')!r} checkpoint, not a GA run ({checkpoint.GA_FORMAT})"
+        )
     cfg = OmegaConf.create(state["config"])
     elites = state["elites"]
     count = elites.shape[0]

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import gymnasium as gym
 import torch
@@ -19,9 +19,9 @@ from torchrl.envs import (
     TransformedEnv,
 )
 
-from spn_torchrl.cartpole_batch import cartpole_batch_backend
+from spn_torchrl.envs.cartpole import cartpole_batch_backend
+from spn_torchrl.envs.mujoco import mujoco_batch_backend
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.mujoco_batch import mujoco_batch_backend
 
 TASKS = {
     "cartpole": "CartPole-v1",
@@ -101,7 +101,7 @@ BACKENDS: dict[str, Callable[..., EnvBase]] = {
 
 def make_batched_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
     """One TorchRL env of ``num_envs`` copies of a task from ``backend``, without transforms (what
-    :class:`~spn_torchrl.evaluate.PopulationEvaluator` steps); discrete actions are indices."""
+    :class:`~spn_torchrl.evaluation.rollout.PopulationEvaluator` steps); discrete actions are indices."""
     if backend not in BACKENDS:
         raise ConfigError(f"env.backend: unknown backend {backend!r}, expected one of {sorted(BACKENDS)}")
     return BACKENDS[backend](env_id, num_envs, num_workers)

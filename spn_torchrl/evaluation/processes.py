@@ -1,6 +1,6 @@
 """Population evaluation in worker processes on this machine: ``env.processes`` > 1.
 
-Each worker process holds one shard's batched env and SPN (:class:`~spn_torchrl.shards.ShardWorker`, built
+Each worker process holds one shard's batched env and SPN (:class:`~spn_torchrl.evaluation.shards.ShardWorker`, built
 once) and runs its episodes to their end on its own. One shard's SPN and env bookkeeping run while the other
 shards' physics runs, so no core waits on the Python of a step; in one process the physics threads wait for
 it at every step. The episodes are the one-process evaluator's, bit for bit.
@@ -18,9 +18,9 @@ from typing import Any
 import torch
 
 from spn_torchrl.errors import EvaluatorError, SpnError
-from spn_torchrl.evaluate import Episodes
-from spn_torchrl.policies import PopulationSPN
-from spn_torchrl.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.evaluation.rollout import Episodes
+from spn_torchrl.evaluation.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.snn.policies import PopulationSPN
 
 
 def spawn_blocked_by() -> str | None:
@@ -29,7 +29,9 @@ def spawn_blocked_by() -> str | None:
     method = multiprocessing.get_start_method(allow_none=True)
     if method in (None, "spawn", "fork", "forkserver"):
         return None
-    return f"this process's multiprocessing start method is {method!r} (e.g. a joblib worker), whose children cannot spawn"
+    return (
+        f"this process's multiprocessing start method is {method!r} (e.g. a joblib worker), whose children cannot spawn"
+    )
 
 
 def _serve(conn: Connection, spn: PopulationSPN, *worker_args: Any) -> None:
@@ -50,7 +52,7 @@ def _serve(conn: Connection, spn: PopulationSPN, *worker_args: Any) -> None:
 
 
 class ProcessEvaluator:
-    """The :class:`~spn_torchrl.evaluate.Evaluator` over ``processes`` worker processes, each holding a
+    """The :class:`~spn_torchrl.evaluation.rollout.Evaluator` over ``processes`` worker processes, each holding a
     contiguous shard of the ``capacity`` slots."""
 
     def __init__(
@@ -101,7 +103,7 @@ class ProcessEvaluator:
         return merge([self._receive(index, None, "evaluate") for index in asked])
 
     def gather(self, query: str) -> list:
-        """Each worker's answer to a :class:`~spn_torchrl.shards.ShardWorker` query (e.g. ``"peak_memory_mb"``)."""
+        """Each worker's answer to a :class:`~spn_torchrl.evaluation.shards.ShardWorker` query (e.g. ``"peak_memory_mb"``)."""
         for index in range(len(self._pipes)):
             self._send(index, (query, ()), f"answer {query}")
         return [self._receive(index, None, f"answer {query}") for index in range(len(self._pipes))]
@@ -133,7 +135,9 @@ class ProcessEvaluator:
 
     def _died(self, index: int, what: str) -> EvaluatorError:
         self._processes[index].join(timeout=1)
-        return EvaluatorError(f"{self._where(index)} died (exit code {self._processes[index].exitcode}) before it could {what}")
+        return EvaluatorError(
+            f"{self._where(index)} died (exit code {self._processes[index].exitcode}) before it could {what}"
+        )
 
     def close(self) -> None:
         for pipe in self._pipes:

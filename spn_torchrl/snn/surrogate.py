@@ -6,7 +6,7 @@ import math
 
 import torch
 
-from spn_torchrl.neurons import SpikeFn
+from spn_torchrl.snn.neurons import SpikeFn
 
 
 class _Spike(torch.autograd.Function):
@@ -35,7 +35,7 @@ SURROGATES = ("fast_sigmoid", "atan")
 
 
 def surrogate_spike(kind: str, alpha: float = 2.0) -> SpikeFn:
-    """A spike function for :func:`spn_torchrl.neurons.spn_dynamics` whose backward pass is ``kind``."""
+    """A spike function for :func:`spn_torchrl.snn.neurons.spn_dynamics` whose backward pass is ``kind``."""
     if kind not in SURROGATES:
         raise ValueError(f"surrogate must be one of {SURROGATES}, got {kind!r}")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -12,10 +12,8 @@ from omegaconf import DictConfig
 from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
-from spn_torchrl.batch_env import BatchEnv
-from spn_torchrl.envs import TaskSpec, make_batched_env
-from spn_torchrl.errors import ConfigError, require
-from spn_torchrl.policies import PopulationSPN
+from spn_torchrl.envs.batch import BatchEnv
+from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
 
@@ -48,18 +46,13 @@ def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_step
     return float(spikes.sum() / (steps.sum() * hidden * time_steps))
 
 
-def episode_seed(run_seed: int, generation: int, phase: int) -> int:
-    """Env seed of one rollout, derived from the run seed so that a resumed run replays it exactly."""
-    return int(np.random.SeedSequence([run_seed, generation, phase]).generate_state(1)[0] >> 1)
-
-
 class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
     The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; it
     needs no transforms, as returns and steps are counted here. A call with fewer than P genomes leaves the
-    remaining slots out of every result. A batch backend (:class:`~spn_torchrl.batch_env.BatchEnv`) is stepped
-    through :meth:`~spn_torchrl.batch_env.BatchEnv.step_slots`, the core of its TorchRL ``step`` without the
+    remaining slots out of every result. A batch backend (:class:`~spn_torchrl.envs.batch.BatchEnv`) is stepped
+    through :meth:`~spn_torchrl.envs.batch.BatchEnv.step_slots`, the core of its TorchRL ``step`` without the
     TensorDicts, on the slots still running; any other env through TorchRL's ``step_and_maybe_reset``, with the
     ``"_step"`` mask once some slots are idle where its batch is one-dimensional.
     """
@@ -105,7 +98,9 @@ class PopulationEvaluator:
         self._td = None
         return Episodes(returns[:count], steps[:count], spikes)
 
-    def _step(self, action: torch.Tensor, active: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def _step(
+        self, action: torch.Tensor, active: torch.Tensor | None
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Step the ``active`` slots (None: all) with ``action`` (a row for each of the first slots); the
         observations [P, n], rewards [P] and done flags [P] of every slot."""
         if self.direct:
@@ -136,55 +131,3 @@ class Evaluator(Protocol):
     def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes: ...
 
     def close(self) -> None: ...
-
-
-def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The :func:`evaluation_slots` copies on this machine, in ``env.processes`` processes."""
-    return machine_evaluator(
-        spn, spec.env_id, evaluation_slots(cfg.algo), cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps,
-        cfg.env.processes, cfg.evaluator.start_timeout_s,
-    )
-
-
-def machine_evaluator(
-    spn: PopulationSPN,
-    env_id: str,
-    slots: int,
-    backend: str,
-    num_workers: int,
-    max_episode_steps: int,
-    processes: int = 1,
-    start_timeout_s: float = 300.0,
-) -> Evaluator:
-    """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
-    > 1, one shard of them in each worker process (spn_torchrl/process_evaluator.py)."""
-    if processes > 1:
-        from spn_torchrl.process_evaluator import ProcessEvaluator, spawn_blocked_by
-
-        blocker = spawn_blocked_by()
-        if blocker is None:
-            return ProcessEvaluator(spn, env_id, slots, backend, num_workers, max_episode_steps, processes, start_timeout_s)
-        log.warning("env.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker)
-    return PopulationEvaluator(make_batched_env(env_id, slots, backend=backend, num_workers=num_workers), spn, max_episode_steps)
-
-
-def ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The population sharded across Ray actors (spn_torchrl/ray_evaluator.py); needs the ``ray`` extra."""
-    require("ray", "ray")
-    from spn_torchrl.ray_evaluator import make_ray_evaluator
-
-    return make_ray_evaluator(cfg, spec, spn)
-
-
-EVALUATORS: dict[str, Callable[[DictConfig, TaskSpec, PopulationSPN], Evaluator]] = {
-    "local": local_evaluator,
-    "ray": ray_evaluator,
-}
-
-
-def make_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The evaluator named by ``evaluator.name``."""
-    name = cfg.evaluator.name
-    if name not in EVALUATORS:
-        raise ConfigError(f"evaluator.name must be one of {sorted(EVALUATORS)}, got {name!r}")
-    return EVALUATORS[name](cfg, spec, spn)

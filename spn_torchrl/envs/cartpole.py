@@ -2,7 +2,7 @@
 
 Replicates ``gym.make("CartPole-v1")`` (default kwargs): the same float64 Euler dynamics written as array
 operations, reward 1 per step (0 for a step after termination), the termination bounds, the reset
-distribution and the 500-step time limit; slots, seeding and masks as :class:`~spn_torchrl.batch_env.BatchEnv`.
+distribution and the 500-step time limit; slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torchrl.data import Categorical
 
-from spn_torchrl.batch_env import BatchEnv, rows
+from spn_torchrl.envs.batch import BatchEnv, rows
 from spn_torchrl.errors import ConfigError
 
 ENV_ID = "CartPole-v1"
@@ -68,7 +68,11 @@ class CartPoleBatchEnv(BatchEnv):
 def cartpole_batch_backend(env_id: str, num_envs: int, num_workers: int = 1) -> CartPoleBatchEnv:
     """Backend factory: CartPole-v1 only, in this process (``num_workers`` must be 1)."""
     if env_id != ENV_ID:
-        raise ConfigError(f"env.backend=cartpole_batch supports {ENV_ID} only, not {env_id!r}: use env.backend=gymnasium")
+        raise ConfigError(
+            f"env.backend=cartpole_batch supports {ENV_ID} only, not {env_id!r}: use env.backend=gymnasium"
+        )
     if num_workers != 1:
-        raise ConfigError(f"env.backend=cartpole_batch steps every copy in one numpy call: env.num_workers must be 1, got {num_workers}")
+        raise ConfigError(
+            f"env.backend=cartpole_batch steps every copy in one numpy call: env.num_workers must be 1, got {num_workers}"
+        )
     return CartPoleBatchEnv(num_envs)

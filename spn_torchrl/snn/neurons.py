@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 import torch
 
@@ -141,7 +141,7 @@ def spn_dynamics(
     [h, n] and [m, h] synapse matrices), obs [P, n] the observations held constant for ``time_steps``
     steps from a zero state. Returns the max over time of the output potentials [P, m] and the hidden
     spike count per individual [P]. ``spike_fn`` lets a gradient through the spikes (see
-    :mod:`spn_torchrl.surrogate`); its forward values must be the Heaviside step's. ``hidden_spikes`` maps
+    :mod:`spn_torchrl.snn.surrogate`); its forward values must be the Heaviside step's. ``hidden_spikes`` maps
     the hidden currents [P, h] to the spikes [P, T, h] in place of :func:`lif_spikes` (e.g.
     :func:`threshold_spikes`, the same values without a gradient).
     """

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from spn_torchrl.runs import RunRecord, mean_std, pooled  # noqa: E402
+from spn_torchrl.analysis.runs import RunRecord, mean_std, pooled  # noqa: E402
 
 COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red", "conn_ppo": "tab:green"}
 
@@ -40,7 +40,9 @@ def task_figure(
             _band(by_gen, pooled(runs, "generation")[0], runs, algo, color)
             generation = (reached or {}).get(algo)
             if generation is not None:
-                by_gen.axvline(generation, color=color, linestyle=":", linewidth=1, label=f"{algo} reaches R: G={generation}")
+                by_gen.axvline(
+                    generation, color=color, linestyle=":", linewidth=1, label=f"{algo} reaches R: G={generation}"
+                )
                 by_steps.axvline(steps[generation - 1], color=color, linestyle=":", linewidth=1)
         _band(by_steps, steps, runs, algo, color)
     for ax in (by_gen, by_steps):

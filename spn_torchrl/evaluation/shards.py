@@ -16,8 +16,8 @@ import numpy as np
 import torch
 
 from spn_torchrl.envs import make_batched_env
-from spn_torchrl.evaluate import Episodes, PopulationEvaluator
-from spn_torchrl.policies import PopulationSPN
+from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator
+from spn_torchrl.snn.policies import PopulationSPN
 
 Results = tuple[np.ndarray, np.ndarray, np.ndarray]  # returns, steps, spikes of one shard
 

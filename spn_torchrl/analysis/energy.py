@@ -15,7 +15,7 @@ to the other reading (spikes per neuron per env step, i.e. over the whole window
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 E_MAC_PJ = 4.6
 E_AC_PJ = 0.9
@@ -82,7 +82,9 @@ def e_optim_ppo(
     """E_PPO = E_DPN*(N_fwd + N_bwd) + E_DVN*(N_fwd + N_bwd); the value counts default to the policy's."""
     value_forward = policy_forward if value_forward is None else value_forward
     value_backward = policy_backward if value_backward is None else value_backward
-    return e_dpn(n, m, hidden) * (policy_forward + policy_backward) + e_dvn(n, hidden) * (value_forward + value_backward)
+    return e_dpn(n, m, hidden) * (policy_forward + policy_backward) + e_dvn(n, hidden) * (
+        value_forward + value_backward
+    )
 
 
 def e_optim_ga(e_spn_pj: float, env_steps: float) -> float:

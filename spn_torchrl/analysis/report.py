@@ -1,0 +1,394 @@
+"""One report over run / multirun directories: curves over seeds, data efficiency, energy (paper Tables 1-4).
+
+``python -m spn_torchrl.report PATH... [--ppo-level R] [--out DIR] [--wandb]`` writes ``report.md``,
+``report.json`` (the same numbers, for tools) and one PNG per task into ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spn_torchrl.analysis import energy
+from spn_torchrl.analysis.energy import sig
+from spn_torchrl.analysis.figures import task_figure
+from spn_torchrl.analysis.runs import RunRecord, find_runs, group_runs, last_value, pooled
+from spn_torchrl.envs import task_spec
+
+PPO_LEVEL_ALGO = "dpn_ppo"
+PAPER_BUDGET = {"generations": 100, "population": 200, "elite_candidates": 10, "elite_episodes": 10}
+
+
+def _nan_to_none(value: float) -> float | None:
+    return None if value is None or math.isnan(value) else float(value)
+
+
+def method_summary(runs: Sequence[RunRecord]) -> dict[str, Any]:
+    """Seeds, length, env steps and final return (mean and std over seeds) of one method on one task."""
+    final = pooled(runs, "eval_return")[:, -1]
+    algo = runs[0].config.algo
+    return {
+        "kind": runs[0].kind,
+        "budget": {
+            k: algo[k] for k in ("generations", "population", "elite_candidates", "elite_episodes") if k in algo
+        },
+        "seeds": sorted(run.seed for run in runs),
+        "rows": min(len(run.rows) for run in runs),
+        "total_env_steps": last_value(runs, "total_env_steps"),
+        "final_return_mean": float(final.mean()),
+        "final_return_std": float(final.std()),
+        "runs": [str(run.path) for run in runs],
+    }
+
+
+def ppo_level(algos: dict[str, list[RunRecord]], override: float | None) -> tuple[float | None, str]:
+    """The PPO level R: ``--ppo-level`` if given, else the DPN-PPO runs' final return (mean over seeds)."""
+    if override is not None:
+        return override, "--ppo-level"
+    runs = algos.get(PPO_LEVEL_ALGO)
+    if runs:
+        return float(
+            pooled(runs, "eval_return")[:, -1].mean()
+        ), f"{PPO_LEVEL_ALGO} runs, final return, {len(runs)} seeds"
+    return None, "no PPO run found and no --ppo-level given"
+
+
+def data_efficiency(runs: Sequence[RunRecord], level: float, ppo_steps: float) -> dict[str, Any]:
+    """G on the mean-over-seeds curve, E = env steps used up to G (measured, mean over seeds), gamma = E / PPO steps."""
+    returns = pooled(runs, "eval_return")
+    generation = energy.first_generation_at(returns.mean(axis=0).tolist(), level)
+    per_seed = [energy.first_generation_at(r.tolist(), level) for r in returns]
+    out: dict[str, Any] = {"G": generation, "seeds_reaching": sum(g is not None for g in per_seed), "seeds": len(runs)}
+    out["per_seed_G"] = per_seed
+    if generation is None:
+        out.update(E=None, gamma=None, A=None)
+        return out
+    used = float(pooled(runs, "total_env_steps")[:, generation - 1].mean())
+    out.update(E=used, gamma=used / ppo_steps, A=used / generation)
+    return out
+
+
+def inference_energy(runs: Sequence[RunRecord], n: int, m: int) -> dict[str, Any]:
+    """E_SPN of the final elites (mean over seeds), dense and mask-aware, beside E_DPN (pJ per env step)."""
+    cfg = runs[0].config.algo
+    hidden, time_steps = int(cfg.get("hidden", energy.HIDDEN)), int(cfg.get("time_steps", 4))
+    rate = last_value(runs, "spike_rate")
+    syn1, syn2 = last_value(runs, "synapses_l1"), last_value(runs, "synapses_l2")
+    e_dpn = energy.e_dpn(n, m, hidden)
+    dense = energy.e_spn(n, m, rate, hidden)
+    masked = energy.e_spn_masked(syn1, syn2, rate) if not math.isnan(syn1 + syn2) else float("nan")
+    return {
+        "hidden": hidden,
+        "rate_per_sim_step": rate,
+        "rate_per_env_step": energy.rate_per_env_step(rate, time_steps),
+        "mask_density": last_value(runs, "mask_density"),
+        "synapses_l1": _nan_to_none(syn1),
+        "synapses_l2": _nan_to_none(syn2),
+        "e_dpn": e_dpn,
+        "e_spn_dense": dense,
+        "e_spn_mask": _nan_to_none(masked),
+        "ratio_dense": e_dpn / dense,
+        "ratio_mask": _nan_to_none(e_dpn / masked),
+    }
+
+
+def ppo_energy(algos: dict[str, list[RunRecord]], n: int, m: int) -> dict[str, Any]:
+    """E_PPO of the DPN-PPO runs from their counted passes, else the paper's counts (2.6e7 / 2.5e7), labelled."""
+    runs = algos.get(PPO_LEVEL_ALGO)
+    if runs and "policy_forward" in runs[0].rows[-1]:
+        counts = {
+            k: last_value(runs, k) for k in ("policy_forward", "policy_backward", "value_forward", "value_backward")
+        }
+        return {
+            "e_ppo": energy.e_optim_ppo(n, m, **counts),
+            "source": f"counted passes of {len(runs)} {PPO_LEVEL_ALGO} run(s), mean over seeds",
+            "counts": counts,
+            "env_steps": last_value(runs, "total_env_steps"),
+        }
+    fwd, bwd = energy.ppo_passes()
+    return {
+        "e_ppo": energy.e_optim_ppo(n, m, fwd, bwd),
+        "source": "not measured (no PPO run found): the paper's counts for 1e6 steps, 2.6e7 forward / 2.5e7 backward",
+        "counts": {"policy_forward": fwd, "policy_backward": bwd, "value_forward": fwd, "value_backward": bwd},
+        "env_steps": energy.PPO_STEPS,
+    }
+
+
+def optim_energy(
+    runs: Sequence[RunRecord], infer: dict[str, Any], eff: dict[str, Any] | None, e_ppo: float
+) -> dict[str, Any]:
+    """E_GA = E_SPN * env steps (to reach R when it was reached, else the whole run), dense and mask-aware."""
+    if eff and eff.get("E") is not None:
+        steps, source = eff["E"], f"env steps to reach R (generation {eff['G']})"
+    else:
+        steps = last_value(runs, "total_env_steps")
+        source = "whole run: R not reached" if eff else "whole run: no PPO level"
+    dense = energy.e_optim_ga(infer["e_spn_dense"], steps)
+    masked = energy.e_optim_ga(infer["e_spn_mask"], steps) if infer["e_spn_mask"] is not None else None
+    return {
+        "env_steps": steps,
+        "steps_source": source,
+        "e_ga_dense": dense,
+        "e_ga_mask": masked,
+        "ratio_dense": e_ppo / dense,
+        "ratio_mask": e_ppo / masked if masked else None,
+    }
+
+
+def task_summary(env: str, algos: dict[str, list[RunRecord]], level_override: float | None) -> dict[str, Any]:
+    """Every number the report shows for one task."""
+    any_run = next(iter(algos.values()))[0]
+    spec = task_spec(any_run.env_id)
+    n, m = spec.n_obs, spec.n_act
+    level, level_source = ppo_level(algos, level_override)
+    ppo = ppo_energy(algos, n, m)
+    summary: dict[str, Any] = {
+        "env": env,
+        "env_id": spec.env_id,
+        "n": n,
+        "m": m,
+        "ppo_level": level,
+        "ppo_level_source": level_source,
+        "ppo": ppo,
+        "methods": {algo: method_summary(runs) for algo, runs in sorted(algos.items())},
+        "data_efficiency": {},
+        "inference": {},
+        "optim": {},
+    }
+    for algo, runs in sorted(algos.items()):
+        if runs[0].kind != "ga":
+            continue
+        eff = data_efficiency(runs, level, ppo["env_steps"]) if level is not None else None
+        if eff is not None:
+            summary["data_efficiency"][algo] = eff
+        infer = inference_energy(runs, n, m)
+        summary["inference"][algo] = infer
+        summary["optim"][algo] = optim_energy(runs, infer, eff, ppo["e_ppo"])
+    return summary
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return lines
+
+
+def _budget(budget: dict[str, Any]) -> str:
+    """The GA budget of a method, marked where it differs from the paper's."""
+    text = ", ".join(f"{k}={v}" for k, v in budget.items())
+    differs = [k for k, v in budget.items() if PAPER_BUDGET.get(k, v) != v]
+    return f"{text} (not the paper's: {', '.join(differs)})" if differs else text
+
+
+def _ratio(value: float | None) -> str:
+    return "-" if value is None else f"**{value:.1f}**"
+
+
+def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
+    """The report section of one task: curves, final returns, Tables 1-4 of the paper."""
+    out = [f"## {s['env_id']} (n={s['n']}, m={s['m']})", "", f"![learning curves]({figure})", ""]
+    level = s["ppo_level"]
+    out.append(f"PPO level R: {'none' if level is None else f'{level:.2f}'} ({s['ppo_level_source']}).")
+    if not any(m["kind"] == "ppo" for m in s["methods"].values()):
+        out.append("No PPO run found for this task: the PPO curve and a measured E_PPO are missing.")
+    out.append("")
+    rows = [
+        [
+            algo,
+            m["kind"],
+            _budget(m["budget"]),
+            len(m["seeds"]),
+            m["rows"],
+            sig(m["total_env_steps"]),
+            f"{m['final_return_mean']:.2f} +- {m['final_return_std']:.2f}",
+        ]
+        for algo, m in s["methods"].items()
+    ]
+    out += _table(
+        [
+            "method",
+            "kind",
+            "budget",
+            "seeds",
+            "generations / iterations done",
+            "env steps (mean)",
+            "final return, mean +- std over seeds",
+        ],
+        rows,
+    )
+    out += ["", "### Data efficiency (paper Table: R, G, E, gamma)", ""]
+    if level is None:
+        out.append("Not computed: no PPO level (run dpn_ppo or pass --ppo-level).")
+    else:
+        rows = [
+            [
+                algo,
+                f"{level:.2f}",
+                e["G"] if e["G"] is not None else "not reached",
+                sig(e["E"]),
+                "-" if e["gamma"] is None else f"**{e['gamma']:.2f}**",
+                f"{e['seeds_reaching']}/{e['seeds']}",
+            ]
+            for algo, e in s["data_efficiency"].items()
+        ]
+        out += _table(["method", "R", "G", "E (env steps)", "gamma = E / PPO steps", "seeds reaching R"], rows)
+        out += [
+            "",
+            f"G: first generation of the mean-over-seeds curve at R; E: env steps actually used up to G (mean over seeds); "
+            f"PPO steps = {sig(s['ppo']['env_steps'])}.",
+        ]
+    out += ["", "### Inference energy (paper Table: E_DPN vs E_SPN, pJ per env step)", ""]
+    rows = [
+        [
+            algo,
+            f"{i['rate_per_sim_step']:.4f}",
+            f"{i['rate_per_env_step']:.4f}",
+            sig(i["e_dpn"]),
+            sig(i["e_spn_dense"]),
+            _ratio(i["ratio_dense"]),
+            f"{sig(i['synapses_l1'])} / {sig(i['synapses_l2'])}",
+            sig(i["e_spn_mask"]),
+            _ratio(i["ratio_mask"]),
+        ]
+        for algo, i in s["inference"].items()
+    ]
+    out += _table(
+        [
+            "method",
+            "rate / sim step",
+            "rate / env step",
+            "E_DPN",
+            "E_SPN dense (paper)",
+            "E_DPN / E_SPN dense",
+            "synapses l1 / l2 (mask-aware)",
+            "E_SPN mask-aware",
+            "E_DPN / E_SPN mask-aware",
+        ],
+        rows,
+    )
+    out += [
+        "",
+        "E_SPN uses the final elites' rate per simulation step (the reading the paper's numbers fit); "
+        "dense counts every synapse as the paper does, mask-aware only the existing ones.",
+    ]
+    out += [
+        "",
+        "### Optimisation energy (paper Table: E_PPO vs E_GA, pJ)",
+        "",
+        f"E_PPO = {sig(s['ppo']['e_ppo'])}: {s['ppo']['source']}.",
+        "",
+    ]
+    rows = [
+        [
+            algo,
+            f"{sig(o['env_steps'])} ({o['steps_source']})",
+            sig(s["ppo"]["e_ppo"]),
+            sig(o["e_ga_dense"]),
+            _ratio(o["ratio_dense"]),
+            sig(o["e_ga_mask"]),
+            _ratio(o["ratio_mask"]),
+        ]
+        for algo, o in s["optim"].items()
+    ]
+    out += _table(
+        [
+            "method",
+            "env steps counted",
+            "E_PPO",
+            "E_GA dense (paper)",
+            "E_PPO / E_GA dense",
+            "E_GA mask-aware",
+            "E_PPO / E_GA mask-aware",
+        ],
+        rows,
+    )
+    return out + [""]
+
+
+def build_report(paths: Sequence[str | Path], out: Path, level: float | None = None) -> dict[str, Any]:
+    """Find the runs under ``paths``, write report.md, report.json and figures into ``out``; return the numbers."""
+    runs = find_runs(paths)
+    out.mkdir(parents=True, exist_ok=True)
+    lines = ["# SPN report", "", f"Runs found under {', '.join(map(str, paths))}: {len(runs)}.", ""]
+    summaries: dict[str, Any] = {}
+    figures: dict[str, str] = {}
+    if not runs:
+        lines.append("No run found (a run directory holds progress.csv and .hydra/config.yaml).")
+    if runs and not any(run.kind == "ppo" for run in runs):
+        lines += [
+            "No PPO run found: PPO curves, the DPN-PPO level and measured PPO pass counts are missing "
+            "(E_PPO below is the paper's model with its published counts, labelled as such).",
+            "",
+        ]
+    lines += ["Energy model: e_MAC = 4.6 pJ, e_AC = 0.9 pJ (45 nm); see spn_torchrl/energy.py and SPEC.md.", ""]
+    for env, algos in group_runs(runs).items():
+        summary = task_summary(env, algos, level)
+        figure = f"{env}.png"
+        reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
+        task_figure(summary["env_id"], algos, summary["ppo_level"], out / figure, reached)
+        summaries[env], figures[env] = summary, str(out / figure)
+        lines += task_markdown(summary, figure)
+    (out / "report.md").write_text("\n".join(lines))
+    (out / "report.json").write_text(json.dumps(summaries, indent=2, default=float))
+    backends = {run.config.get("logger", {}).get("backend") for run in runs}
+    return {
+        "tasks": summaries,
+        "figures": figures,
+        "markdown": str(out / "report.md"),
+        "wandb_projects": sorted({str(run.config.logger.project) for run in runs}) if backends == {"wandb"} else [],
+    }
+
+
+def log_to_wandb(result: dict[str, Any], project: str) -> None:
+    """The report's figures (wandb.Image) and tables (wandb.Table) to W&B; offline without credentials."""
+    import wandb
+
+    from spn_torchrl.records import wandb_mode
+
+    os.environ.setdefault("WANDB_SILENT", "true")
+    run = wandb.init(
+        project=project, job_type="report", mode=wandb_mode("auto"), dir=str(Path(result["markdown"]).parent)
+    )
+    try:
+        for env, s in result["tasks"].items():
+            payload: dict[str, Any] = {f"report/{env}/curves": wandb.Image(result["figures"][env])}
+            for section in ("data_efficiency", "inference", "optim"):
+                columns = sorted({k for v in s[section].values() for k in v if not isinstance(v[k], list)})
+                data = [[algo] + [v.get(k) for k in columns] for algo, v in s[section].items()]
+                if data:
+                    payload[f"report/{env}/{section}"] = wandb.Table(columns=["method"] + columns, data=data)
+            run.log(payload)
+    finally:
+        run.finish()
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m spn_torchrl.report", description=__doc__.splitlines()[0])
+    parser.add_argument("paths", nargs="+", help="run or multirun directories (searched recursively)")
+    parser.add_argument("--ppo-level", type=float, default=None, help="PPO level R (default: from dpn_ppo runs found)")
+    parser.add_argument("--out", type=Path, default=Path("report"), help="output directory (default: ./report)")
+    parser.add_argument(
+        "--wandb",
+        action="store_true",
+        help="also log figures and tables to W&B (automatic when every run used logger=wandb)",
+    )
+    parser.add_argument(
+        "--wandb-project", default=None, help="W&B project (default: the runs' logger.project, else spn_torchrl)"
+    )
+    args = parser.parse_args(argv)
+    np.seterr(all="ignore")
+    result = build_report(args.paths, args.out, args.ppo_level)
+    if args.wandb or result["wandb_projects"]:
+        log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
+    print(f"wrote {result['markdown']} ({len(result['tasks'])} task(s))")
+
+
+if __name__ == "__main__":
+    main()

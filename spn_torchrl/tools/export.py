@@ -1,0 +1,122 @@
+"""Export an evolved SPN: ``python -m spn_torchrl.export RUN_DIR --format nir OUT [--generation G]``.
+
+The elite becomes a NIR graph (https://neuroir.org, the ``nir`` extra):
+``input [n] -> linear_1 (W1*X1) -> lif [h] -> linear_2 (W2*X2) -> li [m] -> output``, no bias; the weights are
+the fixed Kaiming weights with the elite's mask applied (absent synapses are zeros).
+
+NIR's neurons are continuous-time (``tau dv/dt = (v_leak - v) + r I``); the paper's are discrete-time
+(``v = g v + I``, g = decay = 0.75). The mapping: one simulation step lasts ``dt`` (stored in the graph's
+metadata, 1 ms), and forward Euler, written ``v[t] = (1 - dt/tau) v[t-1] + (dt/tau) r I[t]``, equals the paper's
+update when ``dt/tau = 1 - g`` and ``(dt/tau) r = 1``: ``tau = dt / (1 - g)`` = 4 ms and ``r = 1 / (1 - g)`` = 4,
+``v_leak = 0``. (Both coefficients, 0.75 and 1, are exact in binary, so a simulator that computes them first
+reproduces the project's floats exactly; ``v + (dt/tau)(r I - v)`` is the same in real arithmetic. The neuron
+parameters are stored in float64 so that ``dt / tau`` is exactly ``1 - decay``.)
+
+LIF: ``v_threshold = 0.5`` with a strict comparison (spike when ``v > 0.5``), ``v_reset = 0``. The paper applies
+the reset of a spike at the next step (``v = g v (1 - s_prev) + I``); resetting to zero right after the spike,
+as NIR's LIF does, gives the same spikes and potentials. Within one simulation step the graph is evaluated in
+topological order (the LI layer sees the hidden spikes of the same step; no synaptic delay).
+
+What NIR does not express, stored in the graph's metadata: every environment step starts from zero state, the
+observation is presented as a constant input for ``time_steps`` (T' = 4) simulation steps, and the readout is
+the max over those T' steps of the LI potentials (``readout = "max_over_time"``), then ``argmax`` (discrete
+actions) or clipping to ``action_low``/``action_high`` (continuous).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from spn_torchrl.errors import SpnError, require
+from spn_torchrl.tools.elite import Elite, load_elite
+
+DT = 1e-3  # seconds per simulation step (any positive value works: tau scales with it)
+FORMATS = ("nir",)
+
+
+def nir_parameters(decay: float, dt: float = DT) -> tuple[float, float]:
+    """(tau, r) of NIR's LIF/LI whose forward-Euler step of length ``dt`` is ``v = decay * v + I``."""
+    if not 0 <= decay < 1:
+        raise SpnError(f"NIR export needs a decay in [0, 1) (a leaky neuron), got {decay}")
+    return dt / (1.0 - decay), 1.0 / (1.0 - decay)
+
+
+def to_nir(elite: Elite, dt: float = DT):
+    """The elite SPN as a ``nir.NIRGraph`` (see the module docstring for the mapping)."""
+    nir = require("nir", "nir")
+    algo, spec = elite.cfg.algo, elite.spec
+    w1, w2 = (w.detach().numpy().astype(np.float32) for w in elite.weights)
+    h, m = w1.shape[0], w2.shape[0]
+    tau, r = nir_parameters(algo.decay, dt)
+
+    def full(size: int, value: float) -> np.ndarray:  # float64: dt / tau is then exactly 1 - decay
+        return np.full(size, value, dtype=np.float64)
+
+    metadata = {
+        "producer": "spn_torchrl",
+        "env_id": spec.env_id,
+        "generation": elite.generation,
+        "run_name": str(elite.state.get("run_name", "")),
+        "dt": dt,
+        "time_steps": int(algo.time_steps),
+        "decay": float(algo.decay),
+        "integration": "forward Euler: v[t] = (1 - dt/tau) * v[t-1] + (dt/tau) * r * I[t]",
+        "threshold": "strict: spike when v > v_threshold; reset to v_reset right after the spike",
+        "state": "zero at the start of every environment step",
+        "input": "the observation, constant for time_steps simulation steps",
+        "readout": "max_over_time",
+        "action": "argmax" if spec.discrete else "clip",
+        "action_low": np.zeros(0, np.float32) if spec.discrete else spec.action_low.numpy(),
+        "action_high": np.zeros(0, np.float32) if spec.discrete else spec.action_high.numpy(),
+    }
+    nodes = {
+        "input": nir.Input(input_type={"input": np.array([spec.n_obs])}),
+        "linear_1": nir.Linear(weight=w1),
+        "lif": nir.LIF(
+            tau=full(h, tau),
+            r=full(h, r),
+            v_leak=full(h, 0.0),
+            v_threshold=full(h, algo.v_threshold),
+            v_reset=full(h, 0.0),
+        ),
+        "linear_2": nir.Linear(weight=w2),
+        "li": nir.LI(tau=full(m, tau), r=full(m, r), v_leak=full(m, 0.0)),
+        "output": nir.Output(output_type={"output": np.array([m])}),
+    }
+    edges = [("input", "linear_1"), ("linear_1", "lif"), ("lif", "linear_2"), ("linear_2", "li"), ("li", "output")]
+    return nir.NIRGraph(nodes=nodes, edges=edges, metadata=metadata)
+
+
+def export(run_dir: str | Path, out: str | Path, fmt: str = "nir", generation: int | None = None) -> Path:
+    """Write the elite of ``generation`` (default: the last) of the run in ``run_dir`` to ``out``."""
+    if fmt not in FORMATS:
+        raise SpnError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    nir = require("nir", "nir")
+    elite = load_elite(run_dir, generation)
+    graph = to_nir(elite)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    nir.write(out, graph)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m spn_torchrl.export", description="Export a run's elite SPN.")
+    parser.add_argument("run_dir", type=Path, help="a GA run directory (holds checkpoint.pt)")
+    parser.add_argument("out", type=Path, help="the file to write (e.g. elite.nir)")
+    parser.add_argument("--format", default="nir", choices=FORMATS, help="output format (default nir)")
+    parser.add_argument("--generation", type=int, default=None, help="whose elite (1-based; default: the last)")
+    args = parser.parse_args(argv)
+    try:
+        path = export(args.run_dir, args.out, args.format, args.generation)
+    except SpnError as err:
+        sys.exit(f"error: {err}")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
