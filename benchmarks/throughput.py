@@ -90,12 +90,12 @@ def generation(
     k, episodes = min(10, population // 10), 10
     evaluator = machine_evaluator(spn, env_id, population + k * episodes, backend, threads, episode_steps, processes)
     try:
-        fitness = evaluator(parents, seed=1).returns  # the previous generation, not timed
+        fitness = evaluator(parents, 1).returns  # the previous generation, not timed
         candidates = ga.elite_candidates(fitness, k)
         children = ga.next_generation(parents, fitness, sigma=0.01, truncation=0.25, generator=gen)
         before = physics_seconds(evaluator)
         t0 = time.perf_counter()
-        result = evaluator(torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)]), seed=2)
+        result = evaluator(torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)]), 2)
         ga.pick_elite(candidates, result.part(population, population + k * episodes).returns.view(k, episodes))
         fitness = result.part(0, population).returns
         ga.elite_candidates(fitness, k)

@@ -75,7 +75,7 @@ def test_spn_returns_match_gymnasium_backend() -> None:
         evaluator = PopulationEvaluator(
             make_batched_env("CartPole-v1", 32, backend=backend), spn, spec.max_episode_steps
         )
-        results[backend] = evaluator(genomes, seed=7)
+        results[backend] = evaluator(genomes, 7)
         evaluator.close()
     ref, got = results["gymnasium"], results["cartpole_batch"]
     assert torch.equal(got.returns, ref.returns) and torch.equal(got.steps, ref.steps)

@@ -8,7 +8,7 @@ from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
 from spn_torchrl.errors import ConfigError, EvaluatorError
 from spn_torchrl.evaluation.processes import ProcessEvaluator
 from spn_torchrl.evaluation.rollout import PopulationEvaluator
-from spn_torchrl.seeds import episode_seed
+from spn_torchrl.seeds import FITNESS, REEVALUATION, episode_seed, episode_seeds
 from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights
 from spn_torchrl.training import ga
 
@@ -27,8 +27,7 @@ def plain_gymnasium_episode(env_id, spn_kwargs, w1, w2, genome, seed):
     """The reference: one gymnasium env, one single-policy call per step."""
     policy = build_spn(w1, w2, genome, **spn_kwargs)
     env = gym.make(env_id)
-    env.reset(seed=seed)  # what set_seed does, then the evaluator's reset
-    obs, _ = env.reset()
+    obs, _ = env.reset(seed=seed)
     total, steps, spikes, done = 0.0, 0, 0.0, False
     while not done:
         action, s = policy(torch.as_tensor(obs, dtype=torch.float32)[None])
@@ -44,7 +43,7 @@ def test_rollout_equals_plain_gymnasium(env_id, size, sigma):
     spec, spn, genomes, kwargs = setup(env_id, size, sigma)
     evaluator = PopulationEvaluator(make_population_env(env_id, size), spn, spec.max_episode_steps)
     try:
-        result = evaluator(genomes, seed=123)
+        result = evaluator(genomes, 123)
     finally:
         evaluator.close()
     for i in range(size):
@@ -59,9 +58,9 @@ def test_members_run_to_their_own_end_and_fewer_genomes_fill_leading_slots():
     spec, spn, genomes, _ = setup("CartPole-v1", 8, 1.0)
     evaluator = PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, spec.max_episode_steps)
     try:
-        full = evaluator(genomes, seed=5)
-        part = evaluator(genomes[:3], seed=5)
-        again = evaluator(genomes, seed=5)
+        full = evaluator(genomes, 5)
+        part = evaluator(genomes[:3], 5)
+        again = evaluator(genomes, 5)
     finally:
         evaluator.close()
     assert len(set(full.steps.tolist())) > 1  # episodes of different lengths, each counted to its own end
@@ -71,25 +70,30 @@ def test_members_run_to_their_own_end_and_fewer_genomes_fill_leading_slots():
         PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, 10)(torch.zeros(9, spn.genome_size), 0)
 
 
-def test_episode_seeds_differ_per_generation_and_phase():
-    seeds = {episode_seed(0, g, p) for g in range(50) for p in (0, 1)}
+def test_episode_seeds_differ_per_generation_and_role_and_count_up_by_index():
+    seeds = {episode_seed(0, g, role) for g in range(50) for role in (FITNESS, REEVALUATION)}
     assert len(seeds) == 100 and all(0 <= s < 2**31 for s in seeds)
     assert episode_seed(1, 3, 0) == episode_seed(1, 3, 0)
+    assert np.array_equal(episode_seeds(1, 3, REEVALUATION, 4), episode_seed(1, 3, REEVALUATION) + np.arange(4))
 
 
-def test_two_worker_processes_give_the_same_episodes_for_the_first_workers_slots():
-    spec, spn, genomes, _ = setup("CartPole-v1", 8, 1.0)
-    one = PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, spec.max_episode_steps)
-    two = PopulationEvaluator(make_population_env("CartPole-v1", 8, num_workers=2), spn, spec.max_episode_steps)
+@pytest.mark.parametrize(
+    "env_id,backend", [("CartPole-v1", "gymnasium"), ("CartPole-v1", "cartpole_batch"), ("Swimmer-v5", "mujoco_batch")]
+)
+def test_an_episode_depends_on_its_seed_not_on_its_slot(env_id, backend):
+    spec, spn, genomes, _ = setup(env_id, 6, 1.0)
+    steps = 40 if backend == "mujoco_batch" else spec.max_episode_steps
+    evaluator = PopulationEvaluator(make_batched_env(env_id, 6, backend=backend), spn, steps)
+    seeds, order = np.array([3, 9, 27, 81, 243, 729]), np.array([5, 2, 0, 4, 1, 3])
     try:
-        a, b = one(genomes, seed=11), two(genomes, seed=11)
-        part = two(genomes[:6], seed=11)
+        a = evaluator(genomes, seeds)
+        b = evaluator(genomes[order], seeds[order])
+        c = evaluator(genomes[order[:2]], seeds[order[:2]])
     finally:
-        one.close()
-        two.close()
-    # worker 0 is seeded like the single process; ParallelEnv derives worker 1's seed on its own
-    assert torch.equal(a.returns[:4], b.returns[:4]) and torch.equal(a.steps[:4], b.steps[:4])
-    assert part.returns.shape == (6,) and torch.equal(part.returns, b.returns[:6])
+        evaluator.close()
+    for field in ("returns", "steps", "spikes"):
+        assert torch.equal(getattr(b, field), getattr(a, field)[order])
+        assert torch.equal(getattr(c, field), getattr(a, field)[order[:2]])
 
 
 @pytest.mark.parametrize(
@@ -103,7 +107,7 @@ def test_worker_processes_give_the_one_process_episodes(env_id, backend, process
     try:
         assert [p.is_alive() for p in many._processes] == [True] * processes
         for count in (7, 5, 2):  # a full set, a partial one, fewer genomes than processes
-            a, b = one(genomes[:count], seed=9), many(genomes[:count], seed=9)
+            a, b = one(genomes[:count], 9), many(genomes[:count], 9)
             assert (
                 torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
             )
@@ -134,7 +138,7 @@ def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, bac
     assert direct.direct and not through_torchrl.direct
     try:
         for count in (6, 4):
-            a, b = direct(genomes[:count], seed=3), through_torchrl(genomes[:count], seed=3)
+            a, b = direct(genomes[:count], 3), through_torchrl(genomes[:count], 3)
             assert (
                 torch.equal(a.returns, b.returns) and torch.equal(a.steps, b.steps) and torch.equal(a.spikes, b.spikes)
             )
@@ -151,6 +155,6 @@ def test_a_worker_process_killed_is_a_clear_error():
     try:
         evaluator._processes[1].kill()
         with pytest.raises(EvaluatorError, match=r"evaluator process 1 \(slots 3..5\) died \(exit code -9\)"):
-            evaluator(genomes, seed=0)
+            evaluator(genomes, 0)
     finally:
         evaluator.close()

@@ -107,7 +107,7 @@ def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
     results = {}
     for backend in ("gymnasium", "mujoco_batch"):
         evaluator = PopulationEvaluator(make_population_env(env_id, 4, backend=backend), spn, steps)
-        results[backend] = evaluator(genomes, seed=123)
+        results[backend] = evaluator(genomes, 123)
         evaluator.close()
     ref, got = results["gymnasium"], results["mujoco_batch"]
     assert torch.equal(got.steps, ref.steps) and got.total_steps == 3 * steps

@@ -99,8 +99,8 @@ def test_ray_gives_the_local_evaluators_episodes(ray_cluster, algo, env, populat
     spec, spn, genomes = setup(cfg)
     evaluator = make_evaluator(cfg, spec, spn)
     try:
-        remote = evaluator(genomes, seed=321)
-        remote_part = evaluator(genomes[:3], seed=77)  # fewer genomes than the population
+        remote = evaluator(genomes, 321)
+        remote_part = evaluator(genomes[:3], 77)  # fewer genomes than the population
     finally:
         evaluator.close()
     local = local_episodes(cfg, spec, spn, genomes, 321)

@@ -13,7 +13,6 @@ from torchrl.envs import (
     DoubleToFloat,
     EnvBase,
     GymWrapper,
-    ParallelEnv,
     RewardSum,
     StepCounter,
     TransformedEnv,
@@ -74,22 +73,18 @@ def task_spec(env_id: str) -> TaskSpec:
         env.close()
 
 
-def _gym_vector_env(env_id: str, num_envs: int) -> EnvBase:
+def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:
+    """``GymWrapper`` around one ``SyncVectorEnv`` of ``num_envs`` copies, in this process (the evaluator's
+    processes run several)."""
+    if num_workers != 1:
+        raise ConfigError(
+            f"env.backend=gymnasium steps its copies in this process: env.num_workers must be 1, got {num_workers}"
+        )
     venv = gym.vector.SyncVectorEnv(
         [functools.partial(gym.make, env_id) for _ in range(num_envs)],
         autoreset_mode=gym.vector.AutoresetMode.DISABLED,
     )
     return GymWrapper(venv, categorical_action_encoding=True)
-
-
-def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:
-    """``GymWrapper`` around one ``SyncVectorEnv`` of ``num_envs`` copies, or, when ``num_workers > 1``,
-    a ``ParallelEnv`` of ``num_workers`` such envs (batch [num_workers, num_envs / num_workers])."""
-    if num_workers <= 1:
-        return _gym_vector_env(env_id, num_envs)
-    if num_envs % num_workers:
-        raise ConfigError(f"env.num_workers={num_workers} must divide the number of envs {num_envs}")
-    return ParallelEnv(num_workers, functools.partial(_gym_vector_env, env_id, num_envs // num_workers))
 
 
 BACKENDS: dict[str, Callable[..., EnvBase]] = {

@@ -1,7 +1,7 @@
 """The common part of the batched TorchRL envs that replicate a Gymnasium task in one process.
 
-P slots, each with its own seeded generator (slot i seeded with s + i draws what ``gym.make(id).reset(seed=s+i)``
-draws, as TorchRL's GymWrapper seeds a vector env), TorchRL's ``"_step"`` and ``"_reset"`` masks (idle slots
+P slots, each with its own seeded generator (a slot seeded with s draws what ``gym.make(id).reset(seed=s)`` draws;
+``set_seed(s)`` seeds slot i with s + i, as TorchRL's GymWrapper seeds a vector env; ``reset(seed=[...])`` one seed a slot), TorchRL's ``"_step"`` and ``"_reset"`` masks (idle slots
 cost nothing), an elapsed-step counter with the task's time limit (truncation), and the TensorDict plumbing.
 A subclass simulates: :meth:`_reset_slots` and :meth:`_advance`.
 """
@@ -50,17 +50,26 @@ class BatchEnv(EnvBase):
 
     def _set_seed(self, seed: int | None) -> None:
         """Seed slot i with ``seed + i`` and reset, as TorchRL's GymWrapper does on a vector env."""
-        if seed is None:
-            return
-        self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed + i))) for i in self._all]
-        self._restart(None)
+        if seed is not None:
+            self._seed_slots(seed + self._all)
+            self._restart(None)
+
+    def _seed_slots(self, seeds) -> None:
+        """Give slot i the generator that ``reset(seed=seeds[i])`` of the Gymnasium task makes."""
+        if len(seeds) != len(self._all):
+            raise ValueError(f"expected {len(self._all)} seeds, one per slot, got {len(seeds)}")
+        self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(s)))) for s in seeds]
 
     def _restart(self, ids: np.ndarray | None) -> None:
         self._elapsed[rows(ids)] = 0
         self._terminated[rows(ids)] = False
         self._reset_slots(ids)
 
-    def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
+    def _reset(self, tensordict: TensorDictBase | None = None, seed=None, **kwargs) -> TensorDictBase:
+        """Reset the slots of the ``"_reset"`` mask (all without one); ``seed`` (a seed per slot) first seeds
+        every slot, as ``reset(seed=[...])`` of a Gymnasium vector env does."""
+        if seed is not None:
+            self._seed_slots(seed)
         ids = _selected(None if tensordict is None else tensordict.get("_reset", None))
         if ids is None or len(ids):
             self._restart(ids)

@@ -15,6 +15,7 @@ import time
 from multiprocessing.connection import Connection
 from typing import Any
 
+import numpy as np
 import torch
 
 from spn_torchrl.errors import EvaluatorError, SpnError
@@ -93,12 +94,12 @@ class ProcessEvaluator:
             self.close()
             raise
 
-    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
         asked = []
-        for index, _, _, shard, shard_seed in shard_requests(
-            self.spn, genomes, seed, len(self._pipes), self.capacity, "evaluator processes"
+        for index, _, _, shard, shard_seeds in shard_requests(
+            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes"
         ):
-            self._send(index, ("evaluate", (shard, shard_seed)), "evaluate")
+            self._send(index, ("evaluate", (shard, shard_seeds)), "evaluate")
             asked.append(index)
         return merge([self._receive(index, None, "evaluate") for index in asked])
 

@@ -13,6 +13,7 @@ from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
 from spn_torchrl.envs.batch import BatchEnv
+from spn_torchrl.seeds import slot_seeds
 from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
@@ -49,12 +50,13 @@ def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_step
 class PopulationEvaluator:
     """Runs a genome set on one batched env: every member to its own episode end, then frozen.
 
-    The env (batch [P], or any shape of P slots, e.g. [workers, P/workers]) is built once and reused; it
-    needs no transforms, as returns and steps are counted here. A call with fewer than P genomes leaves the
-    remaining slots out of every result. A batch backend (:class:`~spn_torchrl.envs.batch.BatchEnv`) is stepped
+    The env (batch [P]) is built once and reused; it needs no transforms, as returns and steps are counted
+    here. Slot i is reset with ``seeds[i]`` (:func:`~spn_torchrl.seeds.slot_seeds`), so an individual's
+    episode depends on its seed only. A call with fewer than P genomes leaves the remaining slots out of
+    every result. A batch backend (:class:`~spn_torchrl.envs.batch.BatchEnv`) is stepped
     through :meth:`~spn_torchrl.envs.batch.BatchEnv.step_slots`, the core of its TorchRL ``step`` without the
     TensorDicts, on the slots still running; any other env through TorchRL's ``step_and_maybe_reset``, with the
-    ``"_step"`` mask once some slots are idle where its batch is one-dimensional.
+    ``"_step"`` mask once some slots are idle.
     """
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
@@ -64,14 +66,16 @@ class PopulationEvaluator:
         self.size = env.batch_size.numel()
         self.max_episode_steps = max_episode_steps
         self.direct = isinstance(env, BatchEnv)
-        # a ParallelEnv only takes "_step" masks of whole workers, so it gets none
-        self.masks = len(self.shape) == 1
+        if len(self.shape) != 1:
+            raise ValueError(f"the evaluator steps an env of batch [P], got {tuple(self.shape)}")
         self._td: TensorDictBase | None = None
 
-    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
         count = genomes.shape[0]
         if not 0 < count <= self.size:
             raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
+        idle = np.zeros(self.size - count, dtype=np.int64)  # any seed: idle slots are never counted
+        seeds = np.concatenate([slot_seeds(seeds, count), idle])
         self.spn.set_genomes(genomes)
         active = torch.arange(self.size) < count
         returns = torch.zeros(self.size)
@@ -79,8 +83,7 @@ class PopulationEvaluator:
         spikes = torch.zeros(count)
         everyone = count == self.size  # while every slot runs, nothing needs masking
 
-        self.env.set_seed(seed)
-        self._td = self.env.reset()
+        self._td = self.env.reset(seed=seeds.tolist())
         obs = self._td.get("observation").reshape(self.size, -1)
         for step in range(1, self.max_episode_steps + 1):
             # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
@@ -113,7 +116,7 @@ class PopulationEvaluator:
             action = torch.cat([action, action[:1].expand(idle, *action.shape[1:])])
         td = self._td
         td.set("action", action.reshape(*self.shape, *action.shape[1:]))
-        if active is not None and self.masks:
+        if active is not None:
             td.set("_step", active.clone())
         stepped, self._td = self.env.step_and_maybe_reset(td)
         nxt = stepped.get("next")
@@ -126,8 +129,8 @@ class PopulationEvaluator:
 
 
 class Evaluator(Protocol):
-    """What the GA loop needs: genomes [B, D] and an env seed in, one episode per genome out."""
+    """What the GA loop needs: genomes [B, D] and their env seeds [B] in, one episode per genome out."""
 
-    def __call__(self, genomes: torch.Tensor, seed: int) -> Episodes: ...
+    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray) -> Episodes: ...
 
     def close(self) -> None: ...

@@ -1,9 +1,9 @@
 """A population cut into contiguous shards, each evaluated by a worker that holds its own batched env.
 
 What the multi-process evaluators share (``env.processes`` on this machine, ``evaluator=ray`` on a
-cluster): the shard bounds, the genome payload a worker receives (connection genomes as packed mask bits),
-and :class:`ShardWorker`, which seeds its env slot j with ``seed + offset + j`` so that every individual gets
-the episode the one-process evaluator gives it.
+cluster): the shard bounds, the genome payload a worker receives (connection genomes as packed mask bits) with
+each genome's env seed, so that every individual gets the episode the one-process evaluator gives it, and
+:class:`ShardWorker`.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import torch
 
 from spn_torchrl.envs import make_batched_env
 from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator
+from spn_torchrl.seeds import slot_seeds
 from spn_torchrl.snn.policies import PopulationSPN
 
 Results = tuple[np.ndarray, np.ndarray, np.ndarray]  # returns, steps, spikes of one shard
@@ -45,16 +46,16 @@ def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
 
 
 def shard_requests(
-    spn: PopulationSPN, genomes: torch.Tensor, seed: int, parts: int, capacity: int, holders: str
-) -> list[tuple[int, int, int, np.ndarray, int]]:
-    """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, its env
-    seed ``seed + start``) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
+    spn: PopulationSPN, genomes: torch.Tensor, seeds: int | np.ndarray, parts: int, capacity: int, holders: str
+) -> list[tuple[int, int, int, np.ndarray, np.ndarray]]:
+    """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, their env
+    seeds) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
     count = genomes.shape[0]
     if not 0 < count <= capacity:
         raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
-    payload = encode_genomes(spn, genomes)
+    payload, seeds = encode_genomes(spn, genomes), slot_seeds(seeds, count)
     bounds = enumerate(shard_bounds(count, parts))
-    return [(index, start, stop, payload[start:stop], seed + start) for index, (start, stop) in bounds if stop > start]
+    return [(i, start, stop, payload[start:stop], seeds[start:stop]) for i, (start, stop) in bounds if stop > start]
 
 
 def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
@@ -94,8 +95,8 @@ class ShardWorker:
     def ready(self) -> int:
         return self.evaluator.size
 
-    def evaluate(self, payload: np.ndarray, seed: int) -> Results:
-        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seed)
+    def evaluate(self, payload: np.ndarray, seeds: np.ndarray) -> Results:
+        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seeds)
         return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
 
     def peak_memory_mb(self) -> float:

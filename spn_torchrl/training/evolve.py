@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from omegaconf import DictConfig, OmegaConf
 
@@ -16,7 +17,7 @@ from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluation import make_evaluator
 from spn_torchrl.evaluation.rollout import Episodes, spike_rate
 from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
-from spn_torchrl.seeds import episode_seed
+from spn_torchrl.seeds import FITNESS, REEVALUATION, episode_seeds
 from spn_torchrl.snn.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.training import ga
 
@@ -42,6 +43,8 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     The elite re-evaluation of generation g does not change selection (SPEC.md), so it runs in the same
     batched rollout as the population of generation g+1 (one env of N + k x episodes slots), and the last
     generation's in a rollout of its own. Generation g's row is written once its re-evaluation is done.
+    Each episode's env seed derives from (run seed, generation, role, index) (:mod:`spn_torchrl.seeds`), so
+    the rows do not depend on how a generation's episodes are split into rollouts, processes or actors.
     """
     algo = cfg.algo
     spec = task_spec(cfg.env.id)
@@ -153,8 +156,8 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             run_dir,
         )
 
-    def rollout(genomes: torch.Tensor, seed: int) -> Episodes:
-        result = evaluator(genomes, seed)
+    def rollout(genomes: torch.Tensor, seeds: np.ndarray) -> Episodes:
+        result = evaluator(genomes, seeds)
         since_row["steps"] += result.total_steps
         return result
 
@@ -163,12 +166,11 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         log.info("run %s in %s", run_name, run_dir)
         wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
-            reeval = (
-                []
-                if pending is None
-                else [ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)]
-            )
-            result = rollout(torch.cat([population, *reeval]), episode_seed(cfg.seed, generation, 0))
+            genomes, seeds = [population], [episode_seeds(cfg.seed, generation, FITNESS, n)]
+            if pending is not None:
+                genomes.append(ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes))
+                seeds.append(episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes))
+            result = rollout(torch.cat(genomes), np.concatenate(seeds))
             fitness_eps = result.part(0, n)
             if pending is not None:
                 finish(pending, result.part(n, result.returns.numel()))
@@ -191,7 +193,9 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
             genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
-            finish(pending, rollout(genomes, episode_seed(cfg.seed, pending["generation"], 1)))
+            finish(
+                pending, rollout(genomes, episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes))
+            )
             pending = None
             save(algo.generations)
         failed = False

@@ -29,7 +29,7 @@ from spn_torchrl import checkpoint
 from spn_torchrl.envs import TaskSpec, make_population_env, task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.records import Progress, logger_run_id, make_logger
-from spn_torchrl.seeds import episode_seed
+from spn_torchrl.seeds import COLLECTION, EVALUATION, episode_seed
 from spn_torchrl.snn.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.snn.surrogate import surrogate_spike
 
@@ -179,7 +179,7 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
 
     def seed_iteration() -> None:
         # every iteration starts from a reset seeded by (run seed, iteration): a resumed run replays it
-        env.set_seed(episode_seed(cfg.seed, next_iteration[0], 0))
+        env.set_seed(episode_seed(cfg.seed, next_iteration[0], COLLECTION))
 
     collector = Collector(
         env,
@@ -233,7 +233,7 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             eval_return = math.nan
             if iteration % algo.eval_interval == 0 or iteration == iterations:
                 returns, samples = evaluate_policy(
-                    actor, eval_env, spec.max_episode_steps, episode_seed(cfg.seed, iteration, 1)
+                    actor, eval_env, spec.max_episode_steps, episode_seed(cfg.seed, iteration, EVALUATION)
                 )
                 counts.add(eval_policy_forward=samples)
                 eval_return = float(returns.mean())
