@@ -16,7 +16,7 @@ from pathlib import Path
 import torch
 from hydra import compose, initialize_config_dir
 
-from spn_torchrl.config import register_configs, validate
+from spn_torchrl.config import register_configs, to_run_config
 from spn_torchrl.envs import task_spec
 from spn_torchrl.evaluation import make_evaluator
 from spn_torchrl.evaluation.rollout import Episodes
@@ -78,14 +78,14 @@ def main() -> None:
     parser.add_argument("--actors", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--actor-workers", type=int, default=None, help="env.num_workers of each Ray actor (default: the env config's)"
+        "--actor-threads", type=int, default=None, help="env.threads of each Ray actor (default: the env config's)"
     )
     args = parser.parse_args()
 
     register_configs()
     overrides = [f"env={args.env}", f"algo={args.algo}", f"algo.population={args.population}", f"seed={args.seed}"]
     with initialize_config_dir(config_dir=CONF, version_base=None):
-        local_cfg = compose(config_name="config", overrides=overrides)
+        local_cfg = to_run_config(compose(config_name="config", overrides=overrides))
         ray_cfg = compose(
             config_name="config",
             overrides=[
@@ -93,15 +93,15 @@ def main() -> None:
                 "evaluator=ray",
                 f"evaluator.num_actors={args.actors}",
                 f"evaluator.num_cpus={args.actors}",
-                *([f"env.num_workers={args.actor_workers}"] if args.actor_workers else []),
+                *([f"env.threads={args.actor_threads}"] if args.actor_threads else []),
             ],
         )
-    validate(ray_cfg)
+    ray_cfg = to_run_config(ray_cfg)
     torch.set_num_threads(1)
     spec = task_spec(local_cfg.env.id)
     generator = torch.Generator().manual_seed(args.seed)
-    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, local_cfg.algo.hidden, generator)
-    spn = spn_from_config(local_cfg.algo, spec, w1, w2)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, local_cfg.algo.snn.hidden, generator)
+    spn = spn_from_config(local_cfg.algo.snn, local_cfg.algo.genome, spec, w1, w2)
     population = ga.initial_population(args.population, spn.genome_size, local_cfg.algo.sigma, generator)
 
     local = measure(local_cfg, spec, spn, population)

@@ -27,9 +27,10 @@ import torch
 from mujoco.batch import Batch
 from omegaconf import DictConfig, OmegaConf
 
+from spn_torchrl.config import LocalEvaluatorConfig
 from spn_torchrl.envs import TASKS, task_spec
 from spn_torchrl.envs.mujoco import MujocoBatchEnv, batch_task
-from spn_torchrl.evaluation import machine_evaluator
+from spn_torchrl.evaluation import local_processes, machine_evaluator
 from spn_torchrl.evaluation.processes import ProcessEvaluator
 from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
 from spn_torchrl.training import ga, neurons
@@ -82,7 +83,7 @@ def generation(
 ) -> Generation:
     """One GA generation of SPEC.md as spn_torchrl.training.evolve runs it in the steady state: one rollout of the N
     children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection, on the evaluator
-    that ``env.processes=processes`` builds. The physics-alone rate divides its steps by the longest
+    that ``evaluator.processes=processes`` builds. The physics-alone rate divides its steps by the longest
     physics wall time of one shard (the shards' physics runs side by side)."""
     spn = make_spn(env_id)
     gen = torch.Generator().manual_seed(0)
@@ -150,9 +151,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="HalfCheetah-v5")
     parser.add_argument("--population", type=int, default=200)
-    parser.add_argument("--processes", type=int, help="evaluator processes (env.processes; default: the task config's)")
     parser.add_argument(
-        "--threads", type=int, help="physics threads per process (env.num_workers; default: the task config's)"
+        "--processes", type=int, help="evaluator processes (evaluator.processes; default: train.py's for the task)"
+    )
+    parser.add_argument(
+        "--threads", type=int, help="physics threads per process (env.threads; default: the task config's)"
     )
     parser.add_argument("--paper-steps", type=int, default=3000, help="env steps of the paper-way slice")
     parser.add_argument("--ceiling-steps", type=int, default=300, help="batched env steps of the ceiling run")
@@ -163,8 +166,9 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     task = task_config(args.env)
-    args.processes = args.processes or task.processes
-    args.threads = args.threads or task.num_workers
+    args.threads = args.threads or task.get("threads", 1)
+    slots = args.population + 100
+    args.processes = args.processes or local_processes(LocalEvaluatorConfig(), args.threads, slots)
     cores = args.processes * args.threads
 
     ceil = ceiling(args.env, args.population, cores, args.ceiling_steps)

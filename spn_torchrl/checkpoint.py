@@ -12,8 +12,11 @@ from spn_torchrl.errors import CheckpointError
 from spn_torchrl.records import save_torch_atomic
 
 CHECKPOINT_NAME = "checkpoint.pt"
-GA_FORMAT = "spn_torchrl.ga/2"  # /2: the pending re-evaluation is part of the state
-PPO_FORMAT = "spn_torchrl.ppo/1"
+# /3: episode seeds by role and index, the run's config as a dict and its rows in the state (/2: the pending
+# re-evaluation is part of the state); tools still read /2 elites
+GA_FORMAT = "spn_torchrl.ga/3"
+GA_FORMATS_READABLE = ("spn_torchrl.ga/2", GA_FORMAT)
+PPO_FORMAT = "spn_torchrl.ppo/2"  # /2: the run's config as a dict and its rows in the state
 
 
 def save(state: Mapping[str, Any], run_dir: Path) -> Path:

@@ -1,22 +1,94 @@
-"""Typed configs (Hydra structured configs) and the validation every run does before building an env.
+"""Typed run configs (Hydra structured configs) that validate themselves, before any env or worker starts.
 
-Defaults are the paper's (SPEC.md); options that change the algorithm are off by default.
+``run()`` turns the composed config into these dataclasses once (:func:`to_run_config`); every field is checked
+there, and a bad value stops the run with one sentence naming the field, the value and the allowed range.
+Defaults are the paper's (SPEC.md); options that change the algorithm are off by default. The YAML files in
+``conf/`` list only what differs from these schemas.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+import math
+from dataclasses import dataclass, field
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, DictConfig
+from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 from spn_torchrl.errors import ConfigError
+
+GENOMES = ("connections", "weights")
+POLICIES = ("dpn", "spn")
+SURROGATES = ("fast_sigmoid", "atan")
+BACKENDS = ("gymnasium", "mujoco_batch", "cartpole_batch")  # envs.BACKENDS implements each
+LOGGERS = ("csv", "wandb", "none")
+WANDB_MODES = ("auto", "online", "offline", "disabled")
+MAX_SIZE = 100_000  # populations, generations, widths: what a 2-core machine can hold at all
+MAX_SEED = 2**63 - 1
+
+
+def _check(ok: bool, name: str, value: Any, allowed: str) -> None:
+    if not ok:
+        raise ConfigError(f"{name} must be {allowed}, got {value!r}")
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _int_in(name: str, value: Any, low: int, high: int) -> None:
+    ok = isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
+    _check(ok, name, value, f"an integer in [{low}, {high}]")
+
+
+def _number(
+    name: str,
+    value: Any,
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    open_low: bool = False,
+    open_high: bool = False,
+) -> None:
+    """A finite number in a range (bounds None: unbounded; open_*: the bound itself excluded)."""
+    ok = _finite(value)
+    if ok and low is not None:
+        ok = value > low if open_low else value >= low
+    if ok and high is not None:
+        ok = value < high if open_high else value <= high
+    left = "(-inf" if low is None else f"{'(' if open_low else '['}{low:g}"
+    right = "inf)" if high is None else f"{high:g}{')' if open_high else ']'}"
+    _check(ok, name, value, f"a finite number in {left}, {right}")
+
+
+def _choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
+    _check(value in choices, name, value, f"one of {', '.join(map(repr, choices))}")
+
+
+@dataclass
+class SNNConfig:
+    """The SPN of SPEC.md: 64 LIF neurons, T' = 4 simulation steps per env step, decay g = 0.75, threshold
+    v_th = 0.5 (strict), connection threshold s_th = 0.5 on sigmoid(score). Shared by the GA and Connections-PPO."""
+
+    hidden: int = 64
+    time_steps: int = 4
+    decay: float = 0.75
+    v_threshold: float = 0.5
+    score_threshold: float = 0.5
+
+    def validate(self, at: str) -> None:
+        _int_in(f"{at}.hidden", self.hidden, 1, 4096)
+        _int_in(f"{at}.time_steps", self.time_steps, 1, 64)
+        _number(f"{at}.decay", self.decay, 0, 1)
+        _number(f"{at}.v_threshold", self.v_threshold)
+        _number(f"{at}.score_threshold", self.score_threshold, 0, 1, open_low=True, open_high=True)
 
 
 @dataclass
 class GAConfig:
-    """Connections-GA / Weights-GA (SPEC.md: G=100, N=200, sigma=0.01, eta=0.25, s_th=0.5)."""
+    """Connections-GA / Weights-GA (SPEC.md: G=100, N=200, sigma=0.01, eta=0.25, top 10 re-evaluated 10 times)."""
 
     name: str = "conn_ga"
     kind: str = "ga"
@@ -25,21 +97,41 @@ class GAConfig:
     population: int = 200
     sigma: float = 0.01
     truncation: float = 0.25
-    score_threshold: float = 0.5
     elite_candidates: int = 10
     elite_episodes: int = 10
-    hidden: int = 64
-    time_steps: int = 4
-    decay: float = 0.75
-    v_threshold: float = 0.5
+    snn: SNNConfig = field(default_factory=SNNConfig)
     elitism: int = 0  # option: keep the k best unchanged (the paper keeps none)
     init_from_fixed_weights: bool = False  # option (Weights-GA): start around the Kaiming weights, not 0
+
+    def validate(self, at: str = "algo") -> None:
+        _choice(f"{at}.genome", self.genome, GENOMES)
+        _int_in(f"{at}.generations", self.generations, 1, MAX_SIZE)
+        _int_in(f"{at}.population", self.population, 2, MAX_SIZE)
+        _check(self.population % 2 == 0, f"{at}.population", self.population, "even (mirrored pairs)")
+        _number(f"{at}.sigma", self.sigma, 0, None, open_low=True)
+        _number(f"{at}.truncation", self.truncation, 0, 1, open_low=True)
+        _int_in(f"{at}.elite_candidates", self.elite_candidates, 1, self.population)
+        _int_in(f"{at}.elite_episodes", self.elite_episodes, 1, self.population // self.elite_candidates)
+        self.snn.validate(f"{at}.snn")
+        _int_in(f"{at}.elitism", self.elitism, 0, self.population - 1)
+        _check(
+            not self.init_from_fixed_weights or self.genome == "weights",
+            f"{at}.init_from_fixed_weights",
+            self.init_from_fixed_weights,
+            f"false unless {at}.genome=weights",
+        )
+
+    @property
+    def evaluation_slots(self) -> int:
+        """Env slots a generation needs: the population and the previous generation's re-evaluation, which run
+        in one rollout."""
+        return self.population + self.elite_candidates * self.elite_episodes
 
 
 @dataclass
 class PPOConfig:
-    """DPN-PPO / Connections-PPO (SPEC.md, paper appendix): 1e6 steps as 1e3 iterations of 1e3 steps,
-    25 epochs of minibatches of 100, Adam 1e-5 (policy) / 1e-4 (value), gamma 0.99, lambda 0.95, clip 0.2."""
+    """DPN-PPO / Connections-PPO (SPEC.md, paper appendix): 1e6 steps as 1e3 iterations of 1e3 steps, 25 epochs of
+    minibatches of 100, Adam 1e-5 (policy) / 1e-4 (value), gamma 0.99, lambda 0.95, clip 0.2."""
 
     name: str = "dpn_ppo"
     kind: str = "ppo"
@@ -54,41 +146,93 @@ class PPOConfig:
     gae_lambda: float = 0.95
     clip_epsilon: float = 0.2
     normalize_advantage: bool = True  # Spinning Up normalises advantages per batch
-    hidden: int = 64
+    hidden: int = 64  # the DPN's and the value net's hidden width
     log_std_init: float = -0.5  # Spinning Up's initial log-std of the Gaussian
     eval_interval: int = 10  # iterations between deterministic evaluations (the last one is always evaluated)
     eval_episodes: int = 10
-    # Connections-PPO (policy=spn): the GA's SPN and its scores' initial spread
-    surrogate: str = "fast_sigmoid"  # spike derivative: "fast_sigmoid" or "atan"
+    # Connections-PPO (policy=spn): the GA's SPN, its surrogate spike derivative and its scores' initial spread
+    snn: SNNConfig = field(default_factory=SNNConfig)
+    surrogate: str = "fast_sigmoid"
     surrogate_alpha: float = 2.0
     score_init_std: float = 0.01
-    score_threshold: float = 0.5
-    time_steps: int = 4
-    decay: float = 0.75
-    v_threshold: float = 0.5
+
+    def validate(self, at: str = "algo") -> None:
+        _choice(f"{at}.policy", self.policy, POLICIES)
+        _int_in(f"{at}.frames_per_batch", self.frames_per_batch, 1, 1_000_000)
+        _int_in(f"{at}.total_env_steps", self.total_env_steps, self.frames_per_batch, 10**10)
+        _check(
+            self.total_env_steps % self.frames_per_batch == 0,
+            f"{at}.total_env_steps",
+            self.total_env_steps,
+            f"a multiple of {at}.frames_per_batch={self.frames_per_batch}",
+        )
+        _int_in(f"{at}.epochs", self.epochs, 1, 1000)
+        _int_in(f"{at}.minibatch_size", self.minibatch_size, 1, self.frames_per_batch)
+        _check(
+            self.frames_per_batch % self.minibatch_size == 0,
+            f"{at}.minibatch_size",
+            self.minibatch_size,
+            f"a divisor of {at}.frames_per_batch={self.frames_per_batch}",
+        )
+        _number(f"{at}.lr_policy", self.lr_policy, 0, None, open_low=True)
+        _number(f"{at}.lr_value", self.lr_value, 0, None, open_low=True)
+        _number(f"{at}.gamma", self.gamma, 0, 1)
+        _number(f"{at}.gae_lambda", self.gae_lambda, 0, 1)
+        _number(f"{at}.clip_epsilon", self.clip_epsilon, 0, None, open_low=True)
+        _int_in(f"{at}.hidden", self.hidden, 1, 4096)
+        _number(f"{at}.log_std_init", self.log_std_init, -20, 2)
+        _int_in(f"{at}.eval_interval", self.eval_interval, 1, MAX_SIZE)
+        _int_in(f"{at}.eval_episodes", self.eval_episodes, 1, 1000)
+        self.snn.validate(f"{at}.snn")
+        _choice(f"{at}.surrogate", self.surrogate, SURROGATES)
+        _number(f"{at}.surrogate_alpha", self.surrogate_alpha, 0, None, open_low=True)
+        _number(f"{at}.score_init_std", self.score_init_std, 0, None)
 
 
 @dataclass
 class EnvConfig:
+    """The task and the backend that steps its copies."""
+
     name: str = MISSING
-    id: str = MISSING
+    id: str = MISSING  # a Gymnasium id with a flat Box observation
     backend: str = "gymnasium"
-    num_workers: int = 1  # mujoco_batch: physics threads of each env; gymnasium: worker processes (ParallelEnv)
-    processes: int = 1  # GA evaluation on this machine: processes that each run a shard of the population
+    threads: int = 1  # mujoco_batch: physics threads of each env (the other backends step in one thread)
+
+    def validate(self, at: str = "env") -> None:
+        _check(isinstance(self.name, str) and bool(self.name), f"{at}.name", self.name, "a non-empty name")
+        _check(isinstance(self.id, str) and bool(self.id), f"{at}.id", self.id, "a Gymnasium environment id")
+        _choice(f"{at}.backend", self.backend, BACKENDS)
+        _int_in(f"{at}.threads", self.threads, 1, 256)
+        _check(
+            self.threads == 1 or self.backend == "mujoco_batch",
+            f"{at}.threads",
+            self.threads,
+            f"1 for env.backend={self.backend} (only mujoco_batch runs physics threads)",
+        )
 
 
 @dataclass
 class LocalEvaluatorConfig:
-    """Evaluate the population on this machine, on envs of ``env.backend``."""
+    """The population on this machine: in this process, or in worker processes that each run a shard."""
 
     name: str = "local"
-    start_timeout_s: float = 300.0  # the worker processes of env.processes > 1 must be up (envs built) within this time
+    # GA worker processes, each running a shard of the population (its own env and SPN); None: the cores this
+    # process may use divided by env.threads. The episodes are the same for any value.
+    processes: Optional[int] = None
+    start_timeout_s: float = 300.0  # the worker processes must be up (envs built) within this time
+    call_timeout_s: Optional[float] = 3600.0  # one population evaluation must finish within this time (None: no limit)
+
+    def validate(self, at: str = "evaluator") -> None:
+        if self.processes is not None:
+            _int_in(f"{at}.processes", self.processes, 1, 256)
+        _number(f"{at}.start_timeout_s", self.start_timeout_s, 0, None, open_low=True)
+        if self.call_timeout_s is not None:
+            _number(f"{at}.call_timeout_s", self.call_timeout_s, 0, None, open_low=True)
 
 
 @dataclass
 class RayEvaluatorConfig:
-    """Shard the population across Ray actors, each stepping its own batched env (spn_torchrl/ray_evaluator.py);
-    the actors are the processes, so env.processes does not apply."""
+    """The population sharded across Ray actors, each stepping its own batched env (spn_torchrl/evaluation/ray.py)."""
 
     name: str = "ray"
     address: Optional[str] = None  # a running cluster ("auto", "ray://head:10001"); None starts a local one
@@ -100,6 +244,16 @@ class RayEvaluatorConfig:
     call_timeout_s: Optional[float] = None  # one population evaluation must finish within this time (None: no limit)
     ship_code: bool = False  # upload this checkout's spn_torchrl to the cluster (runtime_env py_modules)
 
+    def validate(self, at: str = "evaluator") -> None:
+        _int_in(f"{at}.num_actors", self.num_actors, 1, 10_000)
+        _number(f"{at}.num_cpus_per_actor", self.num_cpus_per_actor, 0, 1024, open_low=True)
+        if self.num_cpus is not None:
+            _int_in(f"{at}.num_cpus", self.num_cpus, 1, 100_000)
+        _int_in(f"{at}.max_restarts", self.max_restarts, 0, 100)
+        _number(f"{at}.start_timeout_s", self.start_timeout_s, 0, None, open_low=True)
+        if self.call_timeout_s is not None:
+            _number(f"{at}.call_timeout_s", self.call_timeout_s, 0, None, open_low=True)
+
 
 @dataclass
 class LoggerConfig:
@@ -107,20 +261,56 @@ class LoggerConfig:
     project: str = "spn_torchrl"
     entity: Optional[str] = None
     group: Optional[str] = None
-    mode: str = "auto"  # wandb: "auto" (offline when there is no network), "online", "offline", "disabled"
+    mode: str = "auto"  # wandb: "auto" (offline when there are no credentials), "online", "offline", "disabled"
     progress_bar: bool = False
+
+    def validate(self, at: str = "logger") -> None:
+        _choice(f"{at}.backend", self.backend, LOGGERS)
+        _choice(f"{at}.mode", self.mode, WANDB_MODES)
 
 
 @dataclass
 class RunConfig:
-    algo: Any = MISSING
+    """One run: the method (``algo``: a GA or a PPO config), the task, the logger and the evaluator (a local or a
+    Ray config). Validates every field on construction."""
+
+    algo: Any = MISSING  # GAConfig | PPOConfig
     env: EnvConfig = MISSING
     logger: LoggerConfig = MISSING
-    evaluator: Any = MISSING
+    evaluator: Any = MISSING  # LocalEvaluatorConfig | RayEvaluatorConfig
     seed: int = 0
     resume: bool = False
     torch_threads: int = 1
     run_name: Optional[str] = None
+
+    def __post_init__(self) -> None:
+        if any(value is MISSING or value == MISSING for value in (self.algo, self.env, self.logger, self.evaluator)):
+            return  # the schema itself, before composition
+        _check(isinstance(self.algo, (GAConfig, PPOConfig)), "algo", self.algo, "a GA or a PPO config (conf/algo)")
+        _check(
+            isinstance(self.evaluator, (LocalEvaluatorConfig, RayEvaluatorConfig)),
+            "evaluator",
+            self.evaluator,
+            "a local or a Ray evaluator config (conf/evaluator)",
+        )
+        self.algo.validate("algo")
+        self.env.validate("env")
+        self.logger.validate("logger")
+        self.evaluator.validate("evaluator")
+        _int_in("seed", self.seed, 0, MAX_SEED)
+        _int_in("torch_threads", self.torch_threads, 1, 256)
+        if isinstance(self.evaluator, RayEvaluatorConfig):
+            _check(
+                isinstance(self.algo, GAConfig),
+                "evaluator",
+                "ray",
+                f"local for algo={self.algo.name} (Ray actors evaluate GA populations; PPO trains one policy here)",
+            )
+            _int_in("evaluator.num_actors", self.evaluator.num_actors, 1, self.algo.population)
+
+    @property
+    def is_ga(self) -> bool:
+        return isinstance(self.algo, GAConfig)
 
 
 def register_configs() -> None:
@@ -135,137 +325,89 @@ def register_configs() -> None:
     cs.store(group="evaluator", name="ray_schema", node=RayEvaluatorConfig)
 
 
-def _require(ok: bool, message: str) -> None:
-    if not ok:
-        raise ConfigError(message)
+SCHEMAS = {
+    "algo": {"ga": GAConfig, "ppo": PPOConfig},
+    "evaluator": {"local": LocalEvaluatorConfig, "ray": RayEvaluatorConfig},
+}
 
 
-def validate_ga(algo: DictConfig) -> None:
-    """One clear sentence per bad GA value, naming the field and the allowed range."""
-    _require(
-        algo.genome in ("connections", "weights"),
-        f"algo.genome must be 'connections' or 'weights', got {algo.genome!r}",
-    )
-    _require(algo.generations >= 1, f"algo.generations must be >= 1, got {algo.generations}")
-    _require(
-        algo.population >= 2 and algo.population % 2 == 0,
-        f"algo.population must be even and >= 2 (mirrored pairs), got {algo.population}",
-    )
-    _require(algo.sigma > 0, f"algo.sigma must be > 0, got {algo.sigma}")
-    _require(0 < algo.truncation <= 1, f"algo.truncation must be in (0, 1], got {algo.truncation}")
-    _require(0 < algo.score_threshold < 1, f"algo.score_threshold must be in (0, 1), got {algo.score_threshold}")
-    _require(
-        1 <= algo.elite_candidates <= algo.population,
-        f"algo.elite_candidates must be in [1, algo.population={algo.population}], got {algo.elite_candidates}",
-    )
-    _require(algo.elite_episodes >= 1, f"algo.elite_episodes must be >= 1, got {algo.elite_episodes}")
-    _require(
-        algo.elite_candidates * algo.elite_episodes <= algo.population,
-        "algo.elite_candidates * algo.elite_episodes must be <= algo.population (the re-evaluation runs on "
-        f"the population's env), got {algo.elite_candidates} * {algo.elite_episodes} > {algo.population}",
-    )
-    _require(algo.hidden >= 1, f"algo.hidden must be >= 1, got {algo.hidden}")
-    _require(algo.time_steps >= 1, f"algo.time_steps must be >= 1, got {algo.time_steps}")
-    _require(0 <= algo.decay <= 1, f"algo.decay must be in [0, 1], got {algo.decay}")
-    _require(
-        0 <= algo.elitism < algo.population,
-        f"algo.elitism must be in [0, algo.population), got {algo.elitism}",
-    )
-    _require(
-        not algo.init_from_fixed_weights or algo.genome == "weights",
-        "algo.init_from_fixed_weights applies only to algo.genome=weights",
-    )
+def _unknown_keys(node: Any, schema: type, at: str) -> None:
+    """A sentence for the first key of ``node`` that ``schema`` does not have (e.g. ``+algo.foo=1``)."""
+    fields = {f.name: f for f in dataclasses.fields(schema)}
+    for key in node:
+        if key not in fields:
+            raise ConfigError(
+                f"{at}.{key} is not a field of {at} ({schema.__name__}): expected one of {', '.join(fields)}"
+            )
+        inner = fields[key].type
+        value = node[key]
+        if isinstance(value, DictConfig) and isinstance(inner, str) and inner in _NESTED:
+            _unknown_keys(value, _NESTED[inner], f"{at}.{key}")
 
 
-def validate_ppo(algo: DictConfig) -> None:
-    """One clear sentence per bad PPO value, naming the field and the allowed range."""
-    from spn_torchrl.snn.surrogate import SURROGATES
-
-    _require(algo.policy in ("dpn", "spn"), f"algo.policy must be 'dpn' or 'spn', got {algo.policy!r}")
-    _require(algo.frames_per_batch >= 1, f"algo.frames_per_batch must be >= 1, got {algo.frames_per_batch}")
-    _require(
-        algo.total_env_steps >= algo.frames_per_batch and algo.total_env_steps % algo.frames_per_batch == 0,
-        f"algo.total_env_steps must be a positive multiple of algo.frames_per_batch={algo.frames_per_batch}, "
-        f"got {algo.total_env_steps}",
-    )
-    _require(algo.epochs >= 1, f"algo.epochs must be >= 1, got {algo.epochs}")
-    _require(
-        1 <= algo.minibatch_size <= algo.frames_per_batch and algo.frames_per_batch % algo.minibatch_size == 0,
-        f"algo.minibatch_size must be in [1, algo.frames_per_batch={algo.frames_per_batch}] and divide it, "
-        f"got {algo.minibatch_size}",
-    )
-    _require(algo.lr_policy > 0, f"algo.lr_policy must be > 0, got {algo.lr_policy}")
-    _require(algo.lr_value > 0, f"algo.lr_value must be > 0, got {algo.lr_value}")
-    _require(0 <= algo.gamma <= 1, f"algo.gamma must be in [0, 1], got {algo.gamma}")
-    _require(0 <= algo.gae_lambda <= 1, f"algo.gae_lambda must be in [0, 1], got {algo.gae_lambda}")
-    _require(algo.clip_epsilon > 0, f"algo.clip_epsilon must be > 0, got {algo.clip_epsilon}")
-    _require(algo.hidden >= 1, f"algo.hidden must be >= 1, got {algo.hidden}")
-    _require(algo.eval_interval >= 1, f"algo.eval_interval must be >= 1, got {algo.eval_interval}")
-    _require(algo.eval_episodes >= 1, f"algo.eval_episodes must be >= 1, got {algo.eval_episodes}")
-    _require(algo.surrogate in SURROGATES, f"algo.surrogate must be one of {list(SURROGATES)}, got {algo.surrogate!r}")
-    _require(algo.surrogate_alpha > 0, f"algo.surrogate_alpha must be > 0, got {algo.surrogate_alpha}")
-    _require(algo.score_init_std >= 0, f"algo.score_init_std must be >= 0, got {algo.score_init_std}")
-    _require(0 < algo.score_threshold < 1, f"algo.score_threshold must be in (0, 1), got {algo.score_threshold}")
-    _require(algo.time_steps >= 1, f"algo.time_steps must be >= 1, got {algo.time_steps}")
-    _require(0 <= algo.decay <= 1, f"algo.decay must be in [0, 1], got {algo.decay}")
+_NESTED = {"SNNConfig": SNNConfig, "EnvConfig": EnvConfig, "LoggerConfig": LoggerConfig}
 
 
-def validate_ray_evaluator(evaluator: DictConfig, population: int) -> None:
-    """One clear sentence per bad Ray evaluator value."""
-    _require(
-        1 <= evaluator.num_actors <= population,
-        f"evaluator.num_actors must be in [1, algo.population={population}], got {evaluator.num_actors}",
-    )
-    _require(
-        evaluator.num_cpus_per_actor > 0,
-        f"evaluator.num_cpus_per_actor must be > 0, got {evaluator.num_cpus_per_actor}",
-    )
-    _require(evaluator.max_restarts >= 0, f"evaluator.max_restarts must be >= 0, got {evaluator.max_restarts}")
-    _require(evaluator.start_timeout_s > 0, f"evaluator.start_timeout_s must be > 0, got {evaluator.start_timeout_s}")
-    _require(
-        evaluator.call_timeout_s is None or evaluator.call_timeout_s > 0,
-        f"evaluator.call_timeout_s must be > 0 or null, got {evaluator.call_timeout_s}",
-    )
+def _schema_of(group: str, node: Any) -> type | None:
+    """The dataclass a composed group node belongs to (None if it names none)."""
+    if not isinstance(node, DictConfig):
+        return None
+    kind = node.get("kind") if group == "algo" else node.get("name")
+    return SCHEMAS[group].get(kind) if isinstance(kind, str) else None
 
 
-def validate(cfg: DictConfig) -> None:
-    """Check a whole run config before anything is built."""
-    kind = cfg.algo.get("kind")
-    _require(kind in ALGO_VALIDATORS, f"algo.kind must be one of {sorted(ALGO_VALIDATORS)}, got {kind!r}")
-    ALGO_VALIDATORS[kind](cfg.algo)
-    from spn_torchrl.envs import BACKENDS
-    from spn_torchrl.evaluation import EVALUATORS
-
-    _require(
-        cfg.evaluator.name in EVALUATORS,
-        f"evaluator.name must be one of {sorted(EVALUATORS)}, got {cfg.evaluator.name!r}",
-    )
-    if cfg.evaluator.name == "ray":
-        validate_ray_evaluator(cfg.evaluator, cfg.algo.population)
-    if cfg.evaluator.name == "local" and kind == "ga":
-        _require(
-            1 <= cfg.env.processes <= cfg.algo.population,
-            f"env.processes must be in [1, algo.population={cfg.algo.population}], got {cfg.env.processes}",
+def to_run_config(cfg: DictConfig | dict) -> RunConfig:
+    """The typed, validated config of a composed (or saved) one; ConfigError naming the first bad field."""
+    cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
+    plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    for group in ("algo", "evaluator"):
+        node = plain.get(group)
+        schema = _schema_of(group, node)
+        what = "algo.kind ('ga' or 'ppo')" if group == "algo" else "evaluator.name ('local' or 'ray')"
+        _check(
+            schema is not None, group, None if node is None else OmegaConf.to_container(node), f"a config with {what}"
         )
-        _require(
-            cfg.evaluator.start_timeout_s > 0,
-            f"evaluator.start_timeout_s must be > 0, got {cfg.evaluator.start_timeout_s}",
-        )
-
-    _require(
-        cfg.env.backend in BACKENDS,
-        f"env.backend must be one of {sorted(BACKENDS)}, got {cfg.env.backend!r}",
-    )
-    _require(cfg.env.num_workers >= 1, f"env.num_workers must be >= 1, got {cfg.env.num_workers}")
-    _require(cfg.torch_threads >= 1, f"torch_threads must be >= 1, got {cfg.torch_threads}")
-    _require(
-        cfg.logger.backend in ("csv", "wandb", "none"),
-        f"logger.backend must be 'csv', 'wandb' or 'none', got {cfg.logger.backend!r}",
-    )
-    _require(
-        cfg.logger.mode in ("auto", "online", "offline", "disabled"),
-        f"logger.mode must be 'auto', 'online', 'offline' or 'disabled', got {cfg.logger.mode!r}",
-    )
+        _unknown_keys(node, schema, group)
+    for group, schema in (("env", EnvConfig), ("logger", LoggerConfig)):
+        _check(isinstance(plain.get(group), DictConfig), group, plain.get(group), "a config group (conf/" + group + ")")
+        _unknown_keys(plain[group], schema, group)
+    try:
+        typed = OmegaConf.structured(RunConfig)
+        typed.algo = OmegaConf.structured(_schema_of("algo", plain.algo))
+        typed.evaluator = OmegaConf.structured(_schema_of("evaluator", plain.evaluator))
+        typed = OmegaConf.merge(typed, plain)
+        return OmegaConf.to_object(typed)
+    except OmegaConfBaseException as err:
+        key = getattr(err, "full_key", None) or "config"
+        raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
 
 
-ALGO_VALIDATORS: dict[str, Any] = {"ga": validate_ga, "ppo": validate_ppo}
+def config_dict(cfg: RunConfig) -> dict[str, Any]:
+    """A run config as plain nested dicts (what W&B receives and a checkpoint stores)."""
+    return dataclasses.asdict(cfg)
+
+
+def config_yaml(cfg: RunConfig) -> str:
+    return OmegaConf.to_yaml(OmegaConf.create(config_dict(cfg)))
+
+
+LEGACY_SNN = ("hidden", "time_steps", "decay", "v_threshold", "score_threshold")
+
+
+def from_saved(saved: str | dict[str, Any]) -> RunConfig:
+    """The run config a checkpoint saved (a dict, or YAML in earlier versions), including the flat layout of
+    earlier versions (the SNN constants under ``algo.``, ``env.num_workers`` and ``env.processes``)."""
+    saved = OmegaConf.to_container(OmegaConf.create(saved), resolve=True)
+    algo, env, evaluator = saved.get("algo", {}), saved.get("env", {}), saved.get("evaluator", {})
+    if "snn" not in algo:
+        snn = {key: algo.pop(key) for key in LEGACY_SNN if key in algo}
+        if algo.get("kind") == "ppo" and "hidden" in snn:
+            algo["hidden"] = snn["hidden"]  # the DPN's width and the SPN's were one field
+        algo["snn"] = snn
+    if "num_workers" in env:
+        env["threads"] = env.pop("num_workers")
+    if "processes" in env:
+        processes = env.pop("processes")
+        if evaluator.get("name") == "local":
+            evaluator.setdefault("processes", processes)
+    return to_run_config(saved)

@@ -13,24 +13,33 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from omegaconf import DictConfig, OmegaConf
+
+from spn_torchrl.config import RunConfig, config_dict
+from spn_torchrl.errors import RunFileError
 
 log = logging.getLogger("spn_torchrl")
 
 
 def write_atomic(path: Path, data: bytes | str) -> None:
-    """Write a file so that a reader (or a killed run) sees either the old or the new content."""
+    """Write a file so that a reader (or a killed run) sees either the old or the new content; an OSError becomes
+    one sentence naming the path (:class:`RunFileError`)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    tmp = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
             f.write(data.encode() if isinstance(data, str) else data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
+    except OSError as err:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        raise RunFileError.of(err, path) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
 
 
@@ -44,28 +53,15 @@ def save_torch_atomic(obj: Any, path: Path) -> None:
 class Progress:
     """progress.csv: one row per generation or iteration, rewritten atomically after each."""
 
-    def __init__(self, path: Path, keep_rows: int = 0) -> None:
+    def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self.rows: list[dict[str, Any]] = read_progress(self.path)[:keep_rows] if keep_rows else []
-        if keep_rows and len(self.rows) < keep_rows:
-            log.warning(
-                "%s holds %d rows, the checkpoint %d: earlier rows are missing", path, len(self.rows), keep_rows
-            )
-        if self.path.exists():
-            self._write()
 
-    def append(self, row: Mapping[str, Any]) -> None:
-        self.rows.append(dict(row))
-        self._write()
-
-    def _write(self) -> None:
-        if not self.rows:
-            self.path.unlink(missing_ok=True)
-            return
+    def write(self, rows: list[Mapping[str, Any]]) -> None:
+        """The file holds exactly ``rows`` (the columns of the first)."""
         out = io.StringIO()
-        writer = csv.DictWriter(out, fieldnames=list(self.rows[0]), extrasaction="ignore")
+        writer = csv.DictWriter(out, fieldnames=list(rows[0]), extrasaction="ignore")
         writer.writeheader()
-        writer.writerows(self.rows)
+        writer.writerows(rows)
         write_atomic(self.path, out.getvalue())
 
 
@@ -123,7 +119,7 @@ def sweep_name() -> str | None:
     return Path(hydra_cfg.sweep.dir).name
 
 
-def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | None = None):
+def make_logger(cfg: RunConfig, run_dir: Path, run_name: str, run_id: str | None = None):
     """A torchrl logger for the run (``None`` for ``logger.backend=none``). W&B runs of one Hydra sweep share
     the group ``logger.group``, by default the sweep directory's name."""
     backend = cfg.logger.backend
@@ -146,16 +142,17 @@ def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | Non
         group=cfg.logger.group or sweep_name(),
         mode=mode,
         offline=mode == "offline",
-        config=OmegaConf.to_container(cfg, resolve=True),
+        config=config_dict(cfg),
     )
 
 
-def close_logger(logger, failed: bool) -> None:
-    """Finish the run's logger; a W&B run of a failed job is marked failed (exit code 1), not left running."""
+def close_logger(logger, exit_code: int = 0) -> None:
+    """Finish the run's logger; the W&B run of a job that failed or was stopped is marked failed with the job's
+    exit code, not left running."""
     if logger is None:
         return
     from torchrl.record.loggers import WandbLogger
 
-    if failed and isinstance(logger, WandbLogger):
-        logger.experiment.finish(exit_code=1)  # the close() below then finds the run finished
+    if exit_code and isinstance(logger, WandbLogger):
+        logger.experiment.finish(exit_code=exit_code)  # the close() below then finds the run finished
     logger.close()

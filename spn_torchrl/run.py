@@ -1,4 +1,4 @@
-"""The one entry point: ``run(cfg)`` validates a composed config and runs the chosen method."""
+"""The one entry point: ``run(cfg)`` turns a composed config into typed objects, checks it, and runs the method."""
 
 from __future__ import annotations
 
@@ -10,8 +10,13 @@ from typing import Any
 import torch
 from omegaconf import DictConfig
 
-from spn_torchrl.config import validate
+from spn_torchrl.config import GAConfig, RunConfig, to_run_config
+from spn_torchrl.envs import check_backend, task_spec
+from spn_torchrl.errors import RunFileError, RunInterrupted
+from spn_torchrl.lifecycle import resume_hint, signals_interrupt
 from spn_torchrl.records import sweep_name
+from spn_torchrl.training.evolve import evolve
+from spn_torchrl.training.ppo import train_ppo
 
 log = logging.getLogger("spn_torchrl")
 
@@ -25,7 +30,7 @@ def hydra_run_dir() -> Path | None:
     return Path(HydraConfig.get().runtime.output_dir)
 
 
-def run_name(cfg: DictConfig) -> str:
+def run_name(cfg: RunConfig) -> str:
     """``run_name`` if set; in a Hydra sweep ``{env}__{algo}__{seed}`` (the sweep names the group); else
     ``{env}__{algo}__{seed}__{time}``, so that repeated single runs stay apart."""
     if cfg.run_name:
@@ -34,21 +39,30 @@ def run_name(cfg: DictConfig) -> str:
     return name if sweep_name() is not None else f"{name}__{int(time.time())}"
 
 
-def run(cfg: DictConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
-    """Validate ``cfg`` and run its algorithm in ``run_dir`` (default: Hydra's output directory)."""
-    validate(cfg)
+def check(cfg: RunConfig) -> None:
+    """What the dataclasses cannot check alone, before any env or worker starts: the task exists and the
+    backend steps it."""
+    task_spec(cfg.env.id)
+    check_backend(cfg.env.backend, cfg.env.id)
+
+
+def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
+    """Check ``cfg`` and run its algorithm in ``run_dir`` (default: Hydra's output directory); returns the last
+    row. SIGINT and SIGTERM end it with :class:`RunInterrupted` after its last consistent checkpoint."""
+    typed = cfg if isinstance(cfg, RunConfig) else to_run_config(cfg)
+    check(typed)
     out = Path(run_dir) if run_dir is not None else hydra_run_dir()
     if out is None:
         raise ValueError("run(cfg) outside a Hydra app needs run_dir")
-    out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(cfg.torch_threads)
-    kind = cfg.algo.kind
-    if kind == "ga":
-        from spn_torchrl.training.evolve import evolve
-
-        return evolve(cfg, out, run_name(cfg))
-    if kind == "ppo":
-        from spn_torchrl.training.ppo import train_ppo
-
-        return train_ppo(cfg, out, run_name(cfg))
-    raise AssertionError(f"validate() let algo.kind={kind!r} through")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise RunFileError.of(err, out, "a run directory") from None
+    torch.set_num_threads(typed.torch_threads)
+    train = evolve if isinstance(typed.algo, GAConfig) else train_ppo
+    try:
+        with signals_interrupt():
+            return train(typed, out, run_name(typed))
+    except RunInterrupted as err:
+        err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)
+        raise

@@ -8,9 +8,31 @@ import sys
 from pathlib import Path
 
 import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import DictConfig
+
+from spn_torchrl.config import RunConfig, register_configs, to_run_config
 
 ROOT = Path(__file__).resolve().parents[1]
+CONF = ROOT / "conf"
+register_configs()
 TINY = ["algo.generations=2", "algo.population=10", "algo.elite_candidates=2", "algo.elite_episodes=5"]
+
+
+def compose_config(*overrides: str) -> DictConfig:
+    """conf/config.yaml composed with ``overrides`` through Hydra's Compose API, as train.py composes it."""
+    with initialize_config_dir(config_dir=str(CONF), version_base=None):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+@pytest.fixture
+def make_config():
+    """The typed, validated run config of some overrides (what ``run()`` receives after composition)."""
+
+    def make(*overrides: str) -> RunConfig:
+        return to_run_config(compose_config(*overrides))
+
+    return make
 
 
 def train_command(run_dir: Path, *overrides: str) -> list[str]:

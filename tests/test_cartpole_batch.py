@@ -84,7 +84,7 @@ def test_spn_returns_match_gymnasium_backend() -> None:
 
 
 def test_other_ids_and_workers_are_config_errors() -> None:
-    with pytest.raises(ConfigError, match="supports CartPole-v1 only"):
+    with pytest.raises(ConfigError, match="steps CartPole-v1 only"):
         make_batched_env("Acrobot-v1", 2, backend="cartpole_batch")
-    with pytest.raises(ConfigError, match="env.num_workers must be 1"):
-        make_batched_env("CartPole-v1", 2, backend="cartpole_batch", num_workers=2)
+    with pytest.raises(ConfigError, match="env.threads must be 1"):
+        make_batched_env("CartPole-v1", 2, backend="cartpole_batch", threads=2)

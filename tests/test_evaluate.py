@@ -4,7 +4,7 @@ import pytest
 import torch
 from torchrl.envs import TransformedEnv
 
-from spn_torchrl.envs import make_batched_env, make_population_env, task_spec
+from spn_torchrl.envs import make_batched_env, make_transformed_env, task_spec
 from spn_torchrl.errors import ConfigError, EvaluatorError
 from spn_torchrl.evaluation.processes import ProcessEvaluator
 from spn_torchrl.evaluation.rollout import PopulationEvaluator
@@ -41,7 +41,7 @@ def plain_gymnasium_episode(env_id, spn_kwargs, w1, w2, genome, seed):
 @pytest.mark.parametrize("env_id,size,sigma", [("CartPole-v1", 6, 1.0), ("Swimmer-v5", 2, 1.0)])
 def test_rollout_equals_plain_gymnasium(env_id, size, sigma):
     spec, spn, genomes, kwargs = setup(env_id, size, sigma)
-    evaluator = PopulationEvaluator(make_population_env(env_id, size), spn, spec.max_episode_steps)
+    evaluator = PopulationEvaluator(make_transformed_env(env_id, size), spn, spec.max_episode_steps)
     try:
         result = evaluator(genomes, 123)
     finally:
@@ -56,7 +56,7 @@ def test_rollout_equals_plain_gymnasium(env_id, size, sigma):
 
 def test_members_run_to_their_own_end_and_fewer_genomes_fill_leading_slots():
     spec, spn, genomes, _ = setup("CartPole-v1", 8, 1.0)
-    evaluator = PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, spec.max_episode_steps)
+    evaluator = PopulationEvaluator(make_transformed_env("CartPole-v1", 8), spn, spec.max_episode_steps)
     try:
         full = evaluator(genomes, 5)
         part = evaluator(genomes[:3], 5)
@@ -67,7 +67,7 @@ def test_members_run_to_their_own_end_and_fewer_genomes_fill_leading_slots():
     assert torch.equal(part.returns, full.returns[:3]) and torch.equal(part.steps, full.steps[:3])
     assert torch.equal(again.returns, full.returns)
     with pytest.raises(ValueError, match="holds 8 individuals"):
-        PopulationEvaluator(make_population_env("CartPole-v1", 8), spn, 10)(torch.zeros(9, spn.genome_size), 0)
+        PopulationEvaluator(make_transformed_env("CartPole-v1", 8), spn, 10)(torch.zeros(9, spn.genome_size), 0)
 
 
 def test_episode_seeds_differ_per_generation_and_role_and_count_up_by_index():
@@ -123,7 +123,7 @@ def test_worker_processes_give_the_one_process_episodes(env_id, backend, process
 
 def test_a_worker_process_that_cannot_build_its_env_raises_its_error():
     spec, spn, _, _ = setup("CartPole-v1", 4, 1.0)
-    with pytest.raises(ConfigError, match="env.num_workers must be 1"):
+    with pytest.raises(ConfigError, match="env.threads must be 1"):
         ProcessEvaluator(spn, "CartPole-v1", 4, "cartpole_batch", 2, spec.max_episode_steps, 2)
 
 

@@ -13,6 +13,8 @@ import torch
 from spn_torchrl.tools.elite import load_elite
 from spn_torchrl.tools.play import run_episode
 
+pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
+
 nir = pytest.importorskip("nir")
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -8,7 +8,7 @@ import pytest
 import torch
 from tensordict import TensorDict
 
-from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.envs import make_transformed_env, task_spec
 from spn_torchrl.envs.mujoco import MujocoBatchEnv
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluation.rollout import PopulationEvaluator
@@ -83,7 +83,7 @@ def test_partial_reset_and_step_follow_gymnasium(env_id: str) -> None:
 
 
 def test_time_limit_truncates_at_1000_steps() -> None:
-    env = make_population_env("Swimmer-v5", 2, backend="mujoco_batch")
+    env = make_transformed_env("Swimmer-v5", 2, backend="mujoco_batch")
     env.set_seed(0)
     td = env.reset()
     for step in range(1, 1001):
@@ -106,7 +106,7 @@ def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
     genomes = torch.randn(3, spn.genome_size, generator=gen)
     results = {}
     for backend in ("gymnasium", "mujoco_batch"):
-        evaluator = PopulationEvaluator(make_population_env(env_id, 4, backend=backend), spn, steps)
+        evaluator = PopulationEvaluator(make_transformed_env(env_id, 4, backend=backend), spn, steps)
         results[backend] = evaluator(genomes, 123)
         evaluator.close()
     ref, got = results["gymnasium"], results["mujoco_batch"]
@@ -117,5 +117,5 @@ def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
 
 
 def test_unknown_id_is_a_config_error() -> None:
-    with pytest.raises(ConfigError, match="mujoco_batch supports"):
-        make_population_env("Hopper-v5", 2, backend="mujoco_batch")
+    with pytest.raises(ConfigError, match="mujoco_batch steps HalfCheetah-v5, Swimmer-v5, HumanoidStandup-v5 only"):
+        make_transformed_env("Hopper-v5", 2, backend="mujoco_batch")

@@ -15,6 +15,8 @@ from spn_torchrl.records import read_progress
 from spn_torchrl.tools.elite import load_elite
 from spn_torchrl.tools.play import find_gl_backend, replay, run_episode, summary
 
+pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -38,7 +40,7 @@ def test_episode_trace_spikes_match_the_policy(cartpole_run):
     elite = load_elite(cartpole_run)
     trace = run_episode(elite, seed=0)
     steps = trace.observations.shape[0]
-    assert trace.spikes.shape == (steps, elite.cfg.algo.time_steps, elite.cfg.algo.hidden)
+    assert trace.spikes.shape == (steps, elite.cfg.algo.snn.time_steps, elite.cfg.algo.snn.hidden)
     assert trace.episode_return == steps
     elite.spn.set_genomes(elite.genome[None].expand(steps, -1))
     actions, counts = elite.spn(trace.observations)

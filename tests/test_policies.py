@@ -2,9 +2,11 @@ import math
 
 import pytest
 import torch
+from tensordict.nn import TensorDictModule
 
+from spn_torchrl.config import SNNConfig
 from spn_torchrl.snn.neurons import spn_dynamics
-from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights, spn_module
+from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights
 
 
 def make(kind="connections", n=5, m=3, h=64, seed=0, **kw):
@@ -26,7 +28,7 @@ def test_mask_threshold_on_sigmoid_of_score():
     genomes = torch.tensor([[0.0, -1e-4], [1e-4, -3.0]])
     x1, x2 = spn.masks(genomes)
     assert x1.flatten().tolist() == [True, True] and x2.flatten().tolist() == [False, False]
-    spn_hi = make(n=1, m=1, h=1, score_threshold=0.7)
+    spn_hi = make(n=1, m=1, h=1, snn=SNNConfig(score_threshold=0.7))
     x1, _ = spn_hi.masks(torch.tensor([[math.log(0.7 / 0.3) + 1e-4, 0.0], [0.8, 0.0]]))
     assert x1.flatten().tolist() == [True, False]
 
@@ -84,7 +86,8 @@ def test_tensordict_module_writes_action_and_spikes():
 
     spn = make(n=4, m=2, discrete=True)
     spn.set_genomes(torch.randn(3, spn.genome_size))
-    td = spn_module(spn)(TensorDict({"observation": torch.randn(3, 4)}, batch_size=[3]))
+    module = TensorDictModule(spn, in_keys=["observation"], out_keys=["action", "hidden_spikes"])
+    td = module(TensorDict({"observation": torch.randn(3, 4)}, batch_size=[3]))
     assert td["action"].shape == (3,) and td["hidden_spikes"].shape == (3,)
 
 

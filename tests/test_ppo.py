@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import compose_config
 
 from spn_torchrl import ConfigError, run
-from spn_torchrl.config import register_configs, validate
-from spn_torchrl.envs import make_population_env, task_spec
+from spn_torchrl.config import to_run_config
+from spn_torchrl.envs import make_transformed_env, task_spec
 from spn_torchrl.records import read_progress
 from spn_torchrl.seeds import episode_seed
 from spn_torchrl.snn.policies import PopulationSPN, TrainableSPN, init_fixed_weights
@@ -20,7 +20,6 @@ from spn_torchrl.snn.surrogate import surrogate_spike
 from spn_torchrl.training.ppo import evaluate_policy, load_actor, make_actor, make_critic
 
 ROOT = Path(__file__).resolve().parents[1]
-register_configs()
 
 TINY = [
     "algo.total_env_steps=400",
@@ -34,8 +33,7 @@ TINY = [
 
 
 def make_cfg(*overrides: str):
-    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base=None):
-        return compose(config_name="config", overrides=list(overrides))
+    return to_run_config(compose_config(*overrides))
 
 
 def _spns(discrete: bool, seed: int = 0):
@@ -83,7 +81,7 @@ def test_ppo_loss_decreases_on_a_fixed_batch() -> None:
     torch.manual_seed(0)
     cfg = make_cfg("algo=dpn_ppo", "env=cartpole")
     spec = task_spec(cfg.env.id)
-    env = make_population_env(spec.env_id, 1)
+    env = make_transformed_env(spec.env_id, 1)
     actor, critic = make_actor(cfg, spec, env), make_critic(spec, 64)
     collector = Collector(env, actor, frames_per_batch=200, total_frames=200, auto_register_policy_transforms=False)
     data = next(iter(collector)).reshape(-1)
@@ -103,21 +101,12 @@ def test_ppo_loss_decreases_on_a_fixed_batch() -> None:
     assert losses[-1] < 0.5 * losses[0]
 
 
-def test_config_errors_name_the_field() -> None:
-    with pytest.raises(ConfigError, match="algo.minibatch_size"):
-        validate(make_cfg("algo=dpn_ppo", "algo.minibatch_size=300"))
-    with pytest.raises(ConfigError, match="algo.total_env_steps"):
-        validate(make_cfg("algo=dpn_ppo", "algo.total_env_steps=1500"))
-    with pytest.raises(ConfigError, match="algo.surrogate"):
-        validate(make_cfg("algo=conn_ppo", "algo.surrogate=relu"))
-    validate(make_cfg("algo=conn_ppo", "env=halfcheetah"))
-
-
 def _strip_time(rows):
     """Rows without timings, as text (NaN == NaN)."""
     return [{k: repr(v) for k, v in r.items() if k not in ("wall_time_s", "steps_per_s")} for r in rows]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["dpn_ppo", "conn_ppo"])
 def test_resume_replays_the_uninterrupted_run(tmp_path: Path, algo: str) -> None:
     full = run(make_cfg(f"algo={algo}", *TINY), tmp_path / "full")
@@ -136,6 +125,7 @@ def test_resume_replays_the_uninterrupted_run(tmp_path: Path, algo: str) -> None
     assert all(torch.equal(a[k], b[k]) for k in a)
 
 
+@pytest.mark.slow
 def test_resume_refuses_another_task(tmp_path: Path) -> None:
     run(make_cfg("algo=dpn_ppo", *TINY, "algo.total_env_steps=200"), tmp_path)
     from spn_torchrl import CheckpointError
@@ -144,11 +134,12 @@ def test_resume_refuses_another_task(tmp_path: Path) -> None:
         run(make_cfg("algo=conn_ppo", *TINY, "resume=true"), tmp_path)
 
 
+@pytest.mark.slow
 def test_deterministic_eval_from_checkpoint_matches_the_logged_return(tmp_path: Path) -> None:
     cfg = make_cfg("algo=dpn_ppo", "env=swimmer", *TINY, "algo.total_env_steps=200", "algo.eval_episodes=2")
     row = run(cfg, tmp_path)
     actor, spec = load_actor(tmp_path, cfg)
-    env = make_population_env(spec.env_id, 2)
+    env = make_transformed_env(spec.env_id, 2)
     try:
         seed = episode_seed(cfg.seed, row["iteration"], 1)
         first, _ = evaluate_policy(actor, env, spec.max_episode_steps, seed)
@@ -159,6 +150,7 @@ def test_deterministic_eval_from_checkpoint_matches_the_logged_return(tmp_path: 
     assert float(first.mean()) == pytest.approx(row["eval_return"], rel=1e-6)
 
 
+@pytest.mark.slow
 def test_dpn_ppo_improves_cartpole_through_train_py(tmp_path: Path) -> None:
     """A real run of the entry point: 6 iterations of 1000 steps with a higher learning rate (~30 s)."""
     cmd = [

@@ -1,25 +1,21 @@
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
-from hydra import compose, initialize_config_dir
+from conftest import compose_config
 
 ray = pytest.importorskip("ray", reason="the Ray evaluator needs the ray extra: pip install -e '.[ray]'")
 
-from spn_torchrl.config import register_configs, validate  # noqa: E402
-from spn_torchrl.envs import make_population_env, task_spec  # noqa: E402
+from spn_torchrl.config import to_run_config  # noqa: E402
+from spn_torchrl.envs import make_transformed_env, task_spec  # noqa: E402
 from spn_torchrl.errors import ConfigError, EvaluatorError  # noqa: E402
 from spn_torchrl.evaluation import make_evaluator  # noqa: E402
 from spn_torchrl.evaluation.rollout import PopulationEvaluator  # noqa: E402
 from spn_torchrl.evaluation.shards import decode_genomes, encode_genomes, shard_bounds  # noqa: E402
 from spn_torchrl.snn.policies import init_fixed_weights, spn_from_config  # noqa: E402
 from spn_torchrl.training import ga  # noqa: E402
-
-CONF = str(Path(__file__).resolve().parents[1] / "conf")
-register_configs()
 
 
 @pytest.fixture(scope="module")
@@ -30,26 +26,22 @@ def ray_cluster():
 
 
 def make_cfg(*overrides):
-    with initialize_config_dir(config_dir=CONF, version_base=None):
-        cfg = compose(
-            config_name="config",
-            overrides=["evaluator=ray", "algo.elite_candidates=1", "algo.elite_episodes=1", *overrides],
-        )
-    validate(cfg)
-    return cfg
+    return to_run_config(
+        compose_config("evaluator=ray", "algo.elite_candidates=1", "algo.elite_episodes=1", *overrides)
+    )
 
 
 def setup(cfg, sigma=1.0):
     spec = task_spec(cfg.env.id)
     generator = torch.Generator().manual_seed(cfg.seed)
-    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, cfg.algo.hidden, generator)
-    spn = spn_from_config(cfg.algo, spec, w1, w2)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, cfg.algo.snn.hidden, generator)
+    spn = spn_from_config(cfg.algo.snn, cfg.algo.genome, spec, w1, w2)
     genomes = ga.initial_population(cfg.algo.population, spn.genome_size, sigma, generator)
     return spec, spn, genomes
 
 
 def local_episodes(cfg, spec, spn, genomes, seed):
-    env = make_population_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend)
+    env = make_transformed_env(spec.env_id, cfg.algo.population, backend=cfg.env.backend)
     evaluator = PopulationEvaluator(env, spn, spec.max_episode_steps)
     try:
         return evaluator(genomes, seed)
@@ -83,6 +75,7 @@ def test_encoded_genomes_give_the_same_effective_weights(algo):
     assert all(torch.equal(x, y) for x, y in zip(a, b))
 
 
+@pytest.mark.slow
 # 6 on 4 actors: uneven shards (2, 2, 1, 1), and 3 genomes leave one actor idle
 @pytest.mark.parametrize(
     "algo,env,population,actors", [("conn_ga", "cartpole", 10, 2), ("weights_ga", "cartpole", 6, 4)]
@@ -139,6 +132,7 @@ def slow_setup(*overrides):
     return cfg, spec, spn, genomes
 
 
+@pytest.mark.slow
 def test_an_actor_killed_mid_call_is_a_clear_error(ray_cluster):
     cfg, spec, spn, genomes = slow_setup("evaluator.max_restarts=0")
     evaluator = make_evaluator(cfg, spec, spn)
@@ -151,6 +145,7 @@ def test_an_actor_killed_mid_call_is_a_clear_error(ray_cluster):
     assert time.monotonic() - started < 60  # an error, not a hang
 
 
+@pytest.mark.slow
 def test_an_actor_killed_mid_call_is_restarted_and_its_shard_rerun(ray_cluster):
     cfg, spec, spn, genomes = slow_setup("evaluator.max_restarts=1")
     evaluator = make_evaluator(cfg, spec, spn)
@@ -163,6 +158,7 @@ def test_an_actor_killed_mid_call_is_restarted_and_its_shard_rerun(ray_cluster):
     assert torch.equal(episodes.returns, local_episodes(cfg, spec, spn, genomes, 5).returns)
 
 
+@pytest.mark.slow
 def test_too_many_actors_for_the_cluster_is_a_clear_error(ray_cluster):
     cfg = make_cfg(
         "algo.population=10", "evaluator.num_actors=3", "evaluator.num_cpus_per_actor=1", "evaluator.start_timeout_s=5"
@@ -179,6 +175,7 @@ def test_bad_ray_settings_are_rejected():
         make_cfg("evaluator.max_restarts=-1")
 
 
+@pytest.mark.slow
 def test_train_with_ray_logs_what_the_local_evaluator_logs(tmp_path):
     """The entry point end to end: a local Ray cluster started by the run, 2 actors, the same progress rows."""
     from conftest import TINY, run_train

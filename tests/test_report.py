@@ -13,6 +13,8 @@ import pytest
 
 from spn_torchrl.analysis.report import build_report
 
+pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

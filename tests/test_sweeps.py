@@ -4,13 +4,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import CONF, ROOT
 from hydra import compose, initialize_config_dir
 
-from spn_torchrl.config import register_configs
 from spn_torchrl.records import read_progress
 
-CONF = str(ROOT / "conf")
+pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
+
 SWEEP = [
     "env=cartpole",
     "algo=conn_ga",
@@ -19,7 +19,6 @@ SWEEP = [
     "algo.elite_candidates=2",
     "algo.elite_episodes=5",
 ]
-register_configs()
 
 
 def multirun(sweep_dir: Path, *overrides: str) -> subprocess.CompletedProcess:
@@ -80,12 +79,12 @@ def test_parallel_sweep_runs_share_a_wandb_group_and_are_named_per_seed(tmp_path
         record = wandb_run_file(sweep_dir / f"cartpole__conn_ga__{seed}")
         assert run_record_field("run_group", "my_sweep") in record  # the sweep directory's name
         assert run_record_field("display_name", f"cartpole__conn_ga__{seed}") in record
-        # a loky worker cannot spawn env.processes workers: the job says so and evaluates in its own process
+        # a loky worker cannot spawn evaluator.processes workers: the job says so and evaluates in its own process
         assert "evaluating in this process" in (sweep_dir / f"cartpole__conn_ga__{seed}" / "train.log").read_text()
 
 
 def launcher(name: str):
-    with initialize_config_dir(config_dir=CONF, version_base=None):
+    with initialize_config_dir(config_dir=str(CONF), version_base=None):
         return compose(
             config_name="config", overrides=[f"hydra/launcher={name}"], return_hydra_config=True
         ).hydra.launcher

@@ -119,3 +119,11 @@ def sig(value: float | None, digits: int = 3) -> str:
         mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
         return f"{mantissa}e{int(exponent)}"
     return f"{value:.{digits}g}"
+
+
+def inference_energy(
+    n: int, m: int, hidden: int, rate: float, synapses_l1: float, synapses_l2: float
+) -> dict[str, float]:
+    """SPN inference energy per env step (pJ): the paper's dense count and the mask-aware one, for a hidden spike
+    rate per simulation step and the synapses that exist in each layer."""
+    return {"dense_pj": e_spn(n, m, rate, hidden), "mask_aware_pj": e_spn_masked(synapses_l1, synapses_l2, rate)}

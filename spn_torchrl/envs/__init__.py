@@ -1,4 +1,5 @@
-"""Task specs and the factory of batched TorchRL envs (one env of P copies of a task)."""
+"""Tasks and their envs: task specs, the backend registry, and the factory of batched TorchRL envs (P copies of a
+task in one env). A new backend is a module here and an entry in ``BACKENDS`` (and its name in ``config.BACKENDS``)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,9 @@ from torchrl.envs import (
     TransformedEnv,
 )
 
+from spn_torchrl.envs.cartpole import ENV_ID as CARTPOLE_ID
 from spn_torchrl.envs.cartpole import cartpole_batch_backend
-from spn_torchrl.envs.mujoco import mujoco_batch_backend
+from spn_torchrl.envs.mujoco import BATCH_TASKS, mujoco_batch_backend
 from spn_torchrl.errors import ConfigError
 
 TASKS = {
@@ -73,13 +75,11 @@ def task_spec(env_id: str) -> TaskSpec:
         env.close()
 
 
-def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:
+def gymnasium_backend(env_id: str, num_envs: int, threads: int = 1) -> EnvBase:
     """``GymWrapper`` around one ``SyncVectorEnv`` of ``num_envs`` copies, in this process (the evaluator's
     processes run several)."""
-    if num_workers != 1:
-        raise ConfigError(
-            f"env.backend=gymnasium steps its copies in this process: env.num_workers must be 1, got {num_workers}"
-        )
+    if threads != 1:
+        raise ConfigError(f"env.backend=gymnasium steps its copies in one thread: env.threads must be 1, got {threads}")
     venv = gym.vector.SyncVectorEnv(
         [functools.partial(gym.make, env_id) for _ in range(num_envs)],
         autoreset_mode=gym.vector.AutoresetMode.DISABLED,
@@ -87,22 +87,40 @@ def gymnasium_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBa
     return GymWrapper(venv, categorical_action_encoding=True)
 
 
-BACKENDS: dict[str, Callable[..., EnvBase]] = {
-    "gymnasium": gymnasium_backend,
-    "mujoco_batch": mujoco_batch_backend,  # HalfCheetah, Swimmer, HumanoidStandup v5 only
-    "cartpole_batch": cartpole_batch_backend,  # CartPole-v1 only
+@dataclass(frozen=True)
+class Backend:
+    """An env backend: its factory ``(env_id, num_envs, threads) -> env`` and the ids it supports (None: any)."""
+
+    factory: Callable[..., EnvBase]
+    env_ids: tuple[str, ...] | None = None
+
+
+BACKENDS: dict[str, Backend] = {
+    "gymnasium": Backend(gymnasium_backend),
+    "mujoco_batch": Backend(mujoco_batch_backend, tuple(BATCH_TASKS)),
+    "cartpole_batch": Backend(cartpole_batch_backend, (CARTPOLE_ID,)),
 }
 
 
-def make_batched_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
+def check_backend(backend: str, env_id: str) -> None:
+    """ConfigError unless ``backend`` exists and steps ``env_id`` (before any env is built)."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"env.backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    ids = BACKENDS[backend].env_ids
+    if ids is not None and env_id not in ids:
+        raise ConfigError(
+            f"env.backend={backend} steps {', '.join(ids)} only, not env.id={env_id!r}: use env.backend=gymnasium"
+        )
+
+
+def make_batched_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", threads: int = 1) -> EnvBase:
     """One TorchRL env of ``num_envs`` copies of a task from ``backend``, without transforms (what
     :class:`~spn_torchrl.evaluation.rollout.PopulationEvaluator` steps); discrete actions are indices."""
-    if backend not in BACKENDS:
-        raise ConfigError(f"env.backend: unknown backend {backend!r}, expected one of {sorted(BACKENDS)}")
-    return BACKENDS[backend](env_id, num_envs, num_workers)
+    check_backend(backend, env_id)
+    return BACKENDS[backend].factory(env_id, num_envs, threads)
 
 
-def make_population_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", num_workers: int = 1) -> EnvBase:
-    """:func:`make_batched_env` with ``DoubleToFloat``, ``StepCounter`` and ``RewardSum``."""
-    base = make_batched_env(env_id, num_envs, backend=backend, num_workers=num_workers)
+def make_transformed_env(env_id: str, num_envs: int, *, backend: str = "gymnasium") -> EnvBase:
+    """:func:`make_batched_env` with ``DoubleToFloat``, ``StepCounter`` and ``RewardSum`` (PPO's envs)."""
+    base = make_batched_env(env_id, num_envs, backend=backend)
     return TransformedEnv(base, Compose(DoubleToFloat(), StepCounter(), RewardSum()))

@@ -65,14 +65,14 @@ class CartPoleBatchEnv(BatchEnv):
         self._fallen[slots] |= terminated
 
 
-def cartpole_batch_backend(env_id: str, num_envs: int, num_workers: int = 1) -> CartPoleBatchEnv:
-    """Backend factory: CartPole-v1 only, in this process (``num_workers`` must be 1)."""
+def cartpole_batch_backend(env_id: str, num_envs: int, threads: int = 1) -> CartPoleBatchEnv:
+    """Backend factory: CartPole-v1 only, in one thread."""
     if env_id != ENV_ID:
         raise ConfigError(
-            f"env.backend=cartpole_batch supports {ENV_ID} only, not {env_id!r}: use env.backend=gymnasium"
+            f"env.backend=cartpole_batch steps {ENV_ID} only, not env.id={env_id!r}: use env.backend=gymnasium"
         )
-    if num_workers != 1:
+    if threads != 1:
         raise ConfigError(
-            f"env.backend=cartpole_batch steps every copy in one numpy call: env.num_workers must be 1, got {num_workers}"
+            f"env.backend=cartpole_batch steps every copy in one numpy call: env.threads must be 1, got {threads}"
         )
     return CartPoleBatchEnv(num_envs)

@@ -156,6 +156,6 @@ class MujocoBatchEnv(BatchEnv):
         self._write_obs(ids)
 
 
-def mujoco_batch_backend(env_id: str, num_envs: int, num_workers: int = 1) -> EnvBase:
-    """Backend factory: ``num_workers`` is the number of physics threads."""
-    return MujocoBatchEnv(env_id, num_envs, num_threads=num_workers)
+def mujoco_batch_backend(env_id: str, num_envs: int, threads: int = 1) -> EnvBase:
+    """Backend factory: ``threads`` physics threads."""
+    return MujocoBatchEnv(env_id, num_envs, num_threads=threads)

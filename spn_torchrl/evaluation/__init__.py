@@ -9,30 +9,42 @@ cuts it into shards for workers that each hold an env, in processes on this mach
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable
 
-from omegaconf import DictConfig
-
+from spn_torchrl.config import GAConfig, LocalEvaluatorConfig, RayEvaluatorConfig, RunConfig
 from spn_torchrl.envs import TaskSpec, make_batched_env
-from spn_torchrl.errors import ConfigError, require
+from spn_torchrl.errors import require
 from spn_torchrl.evaluation.processes import ProcessEvaluator, spawn_blocked_by
-from spn_torchrl.evaluation.rollout import Evaluator, PopulationEvaluator, evaluation_slots
+from spn_torchrl.evaluation.rollout import Evaluator, PopulationEvaluator
 from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
 
 
-def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The :func:`evaluation_slots` copies on this machine, in ``env.processes`` processes."""
+def local_processes(evaluator: LocalEvaluatorConfig, threads: int, slots: int) -> int:
+    """Worker processes of the local evaluator: ``evaluator.processes``, else the cores this process may use
+    divided by the physics threads of each env (at most one per slot)."""
+    if evaluator.processes is not None:
+        return min(evaluator.processes, slots)
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(cores // threads, slots))
+
+
+def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The GA's evaluation slots on this machine, in :func:`local_processes` processes."""
+    algo, evaluator = cfg.algo, cfg.evaluator
+    assert isinstance(algo, GAConfig) and isinstance(evaluator, LocalEvaluatorConfig)
+    slots = algo.evaluation_slots
     return machine_evaluator(
         spn,
         spec.env_id,
-        evaluation_slots(cfg.algo),
+        slots,
         cfg.env.backend,
-        cfg.env.num_workers,
+        cfg.env.threads,
         spec.max_episode_steps,
-        cfg.env.processes,
-        cfg.evaluator.start_timeout_s,
+        local_processes(evaluator, cfg.env.threads, slots),
+        evaluator.start_timeout_s,
     )
 
 
@@ -41,42 +53,39 @@ def machine_evaluator(
     env_id: str,
     slots: int,
     backend: str,
-    num_workers: int,
+    threads: int,
     max_episode_steps: int,
     processes: int = 1,
     start_timeout_s: float = 300.0,
 ) -> Evaluator:
     """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
-    > 1, one shard of them in each worker process (spn_torchrl/process_evaluator.py)."""
+    > 1, one shard of them in each worker process (:mod:`spn_torchrl.evaluation.processes`)."""
     if processes > 1:
         blocker = spawn_blocked_by()
         if blocker is None:
-            return ProcessEvaluator(
-                spn, env_id, slots, backend, num_workers, max_episode_steps, processes, start_timeout_s
-            )
-        log.warning("env.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker)
+            return ProcessEvaluator(spn, env_id, slots, backend, threads, max_episode_steps, processes, start_timeout_s)
+        log.warning(
+            "evaluator.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker
+        )
     return PopulationEvaluator(
-        make_batched_env(env_id, slots, backend=backend, num_workers=num_workers), spn, max_episode_steps
+        make_batched_env(env_id, slots, backend=backend, threads=threads), spn, max_episode_steps
     )
 
 
-def ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The population sharded across Ray actors (spn_torchrl/ray_evaluator.py); needs the ``ray`` extra."""
+def ray_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The population sharded across Ray actors (:mod:`spn_torchrl.evaluation.ray`); needs the ``ray`` extra."""
     require("ray", "ray")
-    from spn_torchrl.evaluation.ray import make_ray_evaluator
+    from spn_torchrl.evaluation.ray import make_ray_evaluator  # Ray is an optional extra, imported only when used
 
     return make_ray_evaluator(cfg, spec, spn)
 
 
-EVALUATORS: dict[str, Callable[[DictConfig, TaskSpec, PopulationSPN], Evaluator]] = {
-    "local": local_evaluator,
-    "ray": ray_evaluator,
+EVALUATORS: dict[type, Callable[[RunConfig, TaskSpec, PopulationSPN], Evaluator]] = {
+    LocalEvaluatorConfig: local_evaluator,
+    RayEvaluatorConfig: ray_evaluator,
 }
 
 
-def make_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The evaluator named by ``evaluator.name``."""
-    name = cfg.evaluator.name
-    if name not in EVALUATORS:
-        raise ConfigError(f"evaluator.name must be one of {sorted(EVALUATORS)}, got {name!r}")
-    return EVALUATORS[name](cfg, spec, spn)
+def make_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
+    """The evaluator that ``cfg.evaluator`` (a local or a Ray config) describes."""
+    return EVALUATORS[type(cfg.evaluator)](cfg, spec, spn)

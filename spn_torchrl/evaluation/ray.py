@@ -5,7 +5,7 @@ batched env and SPN once (the fixed weights reach it once, through the object st
 every individual gets the same episode as in the local evaluator. Per call only the genomes go out (connection
 genomes as packed mask bits) and three numbers per individual come back.
 
-Only this module imports Ray, and only :func:`spn_torchrl.evaluation.rollout.ray_evaluator` imports this module.
+Only this module imports Ray, and only :func:`spn_torchrl.evaluation.ray_evaluator` imports this module.
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import ray
 import torch
-from omegaconf import DictConfig
 
+from spn_torchrl.config import RayEvaluatorConfig, RunConfig
 from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
-from spn_torchrl.evaluation.rollout import Episodes, evaluation_slots
+from spn_torchrl.evaluation.rollout import Episodes
 from spn_torchrl.evaluation.shards import ShardWorker, merge, shard_bounds, shard_requests, without_genomes
 from spn_torchrl.snn.policies import PopulationSPN
 
@@ -89,7 +89,7 @@ def _first_line(err: BaseException) -> str:
     return f"{type(err).__name__}: {text.splitlines()[0] if text else ''}"
 
 
-def connect(evaluator: DictConfig) -> bool:
+def connect(evaluator: RayEvaluatorConfig) -> bool:
     """Join the cluster at ``evaluator.address`` or start a local one; True when this call started Ray."""
     if ray.is_initialized():
         return False
@@ -107,7 +107,7 @@ def connect(evaluator: DictConfig) -> bool:
     return True
 
 
-def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> RayEvaluator:
+def make_ray_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> RayEvaluator:
     """Start ``evaluator.num_actors`` shard actors (each with its env built) and wait until all are up."""
     ev = cfg.evaluator
     owns_ray = connect(ev)
@@ -118,14 +118,14 @@ def make_ray_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> R
             f"evaluator.num_actors={ev.num_actors} x evaluator.num_cpus_per_actor={ev.num_cpus_per_actor} CPUs do not fit "
             f"in the local Ray cluster's {cpus:g} CPUs: lower one of them or set evaluator.num_cpus"
         )
-    population = evaluation_slots(cfg.algo)
+    population = cfg.algo.evaluation_slots
     capacities = [stop - start for start, stop in shard_bounds(population, ev.num_actors)]
     options = {"num_cpus": ev.num_cpus_per_actor, "max_restarts": ev.max_restarts, "max_task_retries": ev.max_restarts}
     # the SPN (its fixed weights) goes to each actor once, inside the creation task, which Ray keeps for restarts
     bare = without_genomes(spn)
     actors = [
         ShardActor.options(**options).remote(
-            bare, spec.env_id, size, cfg.env.backend, cfg.env.num_workers, spec.max_episode_steps
+            bare, spec.env_id, size, cfg.env.backend, cfg.env.threads, spec.max_episode_steps
         )
         for size in capacities
     ]

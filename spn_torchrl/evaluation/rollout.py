@@ -8,7 +8,6 @@ from typing import Protocol
 
 import numpy as np
 import torch
-from omegaconf import DictConfig
 from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
@@ -34,12 +33,6 @@ class Episodes:
     def part(self, start: int, stop: int) -> Episodes:
         """The episodes of individuals ``start`` to ``stop - 1``."""
         return Episodes(self.returns[start:stop], self.steps[start:stop], self.spikes[start:stop])
-
-
-def evaluation_slots(algo: DictConfig) -> int:
-    """Env slots a GA run needs: its population and the previous generation's elite re-evaluation, which
-    run in the same rollout."""
-    return algo.population + algo.elite_candidates * algo.elite_episodes
 
 
 def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_steps: int) -> float:
@@ -86,7 +79,7 @@ class PopulationEvaluator:
         self._td = self.env.reset(seed=seeds.tolist())
         obs = self._td.get("observation").reshape(self.size, -1)
         for step in range(1, self.max_episode_steps + 1):
-            # the SPN called directly: spn_module's TensorDictModule wrapper costs more per step than the SNN
+            # the SPN called directly: a TensorDictModule wrapper costs more per step than the SNN
             action, hidden_spikes = self.spn(obs[:count])
             spikes += hidden_spikes if everyone else hidden_spikes * active[:count]
             obs, reward, done = self._step(action, None if everyone else active)

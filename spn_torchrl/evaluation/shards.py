@@ -85,10 +85,10 @@ class ShardWorker:
     """One shard's batched env of ``capacity`` slots and the SPN; evaluates shards of encoded genomes."""
 
     def __init__(
-        self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, num_workers: int, max_episode_steps: int
+        self, spn: PopulationSPN, env_id: str, capacity: int, backend: str, threads: int, max_episode_steps: int
     ) -> None:
         torch.set_num_threads(1)
-        env = make_batched_env(env_id, capacity, backend=backend, num_workers=num_workers)
+        env = make_batched_env(env_id, capacity, backend=backend, threads=threads)
         self.evaluator = PopulationEvaluator(env, spn, max_episode_steps)
         self.genome_kind, self.genome_size = spn.genome_kind, spn.genome_size
 
@@ -106,6 +106,3 @@ class ShardWorker:
     def physics_seconds(self) -> float | None:
         """Wall time this shard's env spent inside its batched physics call (None: not a mujoco_batch env)."""
         return getattr(self.evaluator.env, "physics_seconds", None)
-
-    def close(self) -> None:
-        self.evaluator.close()

@@ -7,11 +7,12 @@ from collections.abc import Callable
 
 import torch
 
+from spn_torchrl.config import SNNConfig
+
 SpikeFn = Callable[[torch.Tensor, float], torch.Tensor]
 
-DECAY = 0.75
-V_TH = 0.5
-TIME_STEPS = 4
+SNN = SNNConfig()  # the paper's constants (SPEC.md), the functions' defaults
+DECAY, V_TH, TIME_STEPS = SNN.decay, SNN.v_threshold, SNN.time_steps
 
 
 def heaviside(v: torch.Tensor, v_th: float) -> torch.Tensor:

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 
 import torch
-from tensordict.nn import TensorDictModule
 from torch import nn
 
+from spn_torchrl.config import SNNConfig
+from spn_torchrl.envs import TaskSpec
 from spn_torchrl.snn import neurons
 
 GENOME_KINDS = ("connections", "weights")
@@ -33,7 +34,7 @@ class PopulationSPN(nn.Module):
     """The SPN of SPEC.md for a population of genomes [P, D].
 
     ``genome_kind="connections"``: genes are connection scores, a synapse exists where
-    ``sigmoid(score) >= score_threshold``, and its weight is the fixed one. ``"weights"``: genes are the
+    ``sigmoid(score) >= snn.score_threshold``, and its weight is the fixed one. ``"weights"``: genes are the
     weights themselves (no mask). Call :meth:`set_genomes` once per genome set; :meth:`forward` maps
     observations [P, n] to actions ([P, m] clipped, or [P] indices when ``discrete``) and the hidden
     spike count [P] of that environment step.
@@ -45,13 +46,10 @@ class PopulationSPN(nn.Module):
         w2: torch.Tensor,
         *,
         genome_kind: str = "connections",
-        score_threshold: float = 0.5,
+        snn: SNNConfig = neurons.SNN,
         discrete: bool = False,
         action_low: torch.Tensor | None = None,
         action_high: torch.Tensor | None = None,
-        time_steps: int = neurons.TIME_STEPS,
-        decay: float = neurons.DECAY,
-        v_th: float = neurons.V_TH,
     ) -> None:
         super().__init__()
         if genome_kind not in GENOME_KINDS:
@@ -66,16 +64,16 @@ class PopulationSPN(nn.Module):
         self.register_buffer("action_low", low.reshape(m).clone())
         self.register_buffer("action_high", high.reshape(m).clone())
         self.genome_kind = genome_kind
-        self.score_threshold = score_threshold
+        self.snn = snn
+        self.score_threshold = snn.score_threshold
         self.discrete = discrete
-        self.time_steps = time_steps
-        self.decay = decay
-        self.v_th = v_th
+        self.time_steps, self.decay, self.v_th = snn.time_steps, snn.decay, snn.v_threshold
         self.w1_eff: torch.Tensor | None = None
         self.w2_eff: torch.Tensor | None = None
         # the hidden layer's spikes from thresholds on its current (neurons.threshold_spikes): derived, not saved
-        self.register_buffer("spike_thresholds", neurons.spike_thresholds(time_steps, decay, v_th), persistent=False)
-        self.register_buffer("spike_pattern", neurons.spike_pattern(time_steps), persistent=False)
+        thresholds = neurons.spike_thresholds(self.time_steps, self.decay, self.v_th)
+        self.register_buffer("spike_thresholds", thresholds, persistent=False)
+        self.register_buffer("spike_pattern", neurons.spike_pattern(self.time_steps), persistent=False)
 
     @property
     def genome_size(self) -> int:
@@ -125,24 +123,18 @@ class PopulationSPN(nn.Module):
         return genomes[:, : h * n].reshape(p, h, n), genomes[:, h * n :].reshape(p, m, h)
 
 
-def spn_module(spn: PopulationSPN) -> TensorDictModule:
-    """Wrap a PopulationSPN to read ``observation`` and write ``action`` and ``hidden_spikes``."""
-    return TensorDictModule(spn, in_keys=["observation"], out_keys=["action", "hidden_spikes"])
-
-
-def spn_from_config(algo, spec, w1: torch.Tensor, w2: torch.Tensor) -> PopulationSPN:
-    """The SPN that ``algo`` (an algo config) describes for a task spec and its fixed weights."""
+def spn_from_config(
+    snn: SNNConfig, genome_kind: str, spec: TaskSpec, w1: torch.Tensor, w2: torch.Tensor
+) -> PopulationSPN:
+    """The SPN of ``snn`` and ``genome_kind`` for a task and its fixed weights."""
     return PopulationSPN(
         w1,
         w2,
-        genome_kind=algo.get("genome", "connections"),
-        score_threshold=algo.score_threshold,
+        genome_kind=genome_kind,
+        snn=snn,
         discrete=spec.discrete,
         action_low=spec.action_low,
         action_high=spec.action_high,
-        time_steps=algo.time_steps,
-        decay=algo.decay,
-        v_th=algo.v_threshold,
     )
 
 

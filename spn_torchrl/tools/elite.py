@@ -6,9 +6,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import torch
-from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl import checkpoint
+from spn_torchrl.config import RunConfig, from_saved
 from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import CheckpointError, SpnError
 from spn_torchrl.snn.policies import PopulationSPN, spn_from_config
@@ -19,7 +19,7 @@ class Elite:
     """One generation's elite of a run, with the SPN (population of one) already set to it."""
 
     run_dir: Path
-    cfg: DictConfig
+    cfg: RunConfig
     spec: TaskSpec
     spn: PopulationSPN
     genome: torch.Tensor
@@ -47,18 +47,18 @@ def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
     if not run_dir.exists():
         raise SpnError(f"run directory {run_dir} does not exist")
     state = checkpoint.load(run_dir)
-    if state["meta"].get("format") != checkpoint.GA_FORMAT:
+    if state["meta"].get("format") not in checkpoint.GA_FORMATS_READABLE:
         raise CheckpointError(
             f"{run_dir} holds a {state['meta'].get('format')!r} checkpoint, not a GA run ({checkpoint.GA_FORMAT})"
         )
-    cfg = OmegaConf.create(state["config"])
+    cfg = from_saved(state["config"])
     elites = state["elites"]
     count = elites.shape[0]
     generation = count if generation is None else generation
     if not 1 <= generation <= count:
         raise SpnError(f"--generation must be in [1, {count}] for {run_dir}, got {generation}")
     spec = task_spec(state["meta"]["env_id"])
-    spn = spn_from_config(cfg.algo, spec, state["w1"], state["w2"])
+    spn = spn_from_config(cfg.algo.snn, cfg.algo.genome, spec, state["w1"], state["w2"])
     genome = elites[generation - 1]
     spn.set_genomes(genome[None])
     return Elite(run_dir, cfg, spec, spn, genome, generation, count, elites, state)

@@ -48,10 +48,10 @@ def nir_parameters(decay: float, dt: float = DT) -> tuple[float, float]:
 def to_nir(elite: Elite, dt: float = DT):
     """The elite SPN as a ``nir.NIRGraph`` (see the module docstring for the mapping)."""
     nir = require("nir", "nir")
-    algo, spec = elite.cfg.algo, elite.spec
+    snn, spec = elite.cfg.algo.snn, elite.spec
     w1, w2 = (w.detach().numpy().astype(np.float32) for w in elite.weights)
     h, m = w1.shape[0], w2.shape[0]
-    tau, r = nir_parameters(algo.decay, dt)
+    tau, r = nir_parameters(snn.decay, dt)
 
     def full(size: int, value: float) -> np.ndarray:  # float64: dt / tau is then exactly 1 - decay
         return np.full(size, value, dtype=np.float64)
@@ -62,8 +62,8 @@ def to_nir(elite: Elite, dt: float = DT):
         "generation": elite.generation,
         "run_name": str(elite.state.get("run_name", "")),
         "dt": dt,
-        "time_steps": int(algo.time_steps),
-        "decay": float(algo.decay),
+        "time_steps": int(snn.time_steps),
+        "decay": float(snn.decay),
         "integration": "forward Euler: v[t] = (1 - dt/tau) * v[t-1] + (dt/tau) * r * I[t]",
         "threshold": "strict: spike when v > v_threshold; reset to v_reset right after the spike",
         "state": "zero at the start of every environment step",
@@ -80,7 +80,7 @@ def to_nir(elite: Elite, dt: float = DT):
             tau=full(h, tau),
             r=full(h, r),
             v_leak=full(h, 0.0),
-            v_threshold=full(h, algo.v_threshold),
+            v_threshold=full(h, snn.v_threshold),
             v_reset=full(h, 0.0),
         ),
         "linear_2": nir.Linear(weight=w2),

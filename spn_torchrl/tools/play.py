@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from spn_torchrl.analysis.energy import e_spn, e_spn_masked
+from spn_torchrl.analysis.energy import inference_energy
 from spn_torchrl.envs import make_batched_env
 from spn_torchrl.errors import SpnError, require
 from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator, spike_rate
@@ -45,7 +45,7 @@ class Trace:
 
 def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
     """``episodes`` episodes of the elite (one batched env, the elite repeated), seeded by ``seed``."""
-    env = make_batched_env(elite.spec.env_id, episodes, backend=elite.cfg.env.backend)
+    env = make_batched_env(elite.spec.env_id, episodes, backend=elite.cfg.env.backend, threads=elite.cfg.env.threads)
     evaluator = PopulationEvaluator(env, elite.spn, elite.spec.max_episode_steps)
     try:
         return evaluator(elite.genome[None].expand(episodes, -1), seed)
@@ -55,8 +55,8 @@ def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
 
 def hidden_spike_train(elite: Elite, observation: torch.Tensor) -> torch.Tensor:
     """Hidden spikes [T', h] of one environment step (the LIF part of :func:`neurons.spn_dynamics`)."""
-    algo = elite.cfg.algo
-    return neurons.lif_spikes(elite.weights[0] @ observation, algo.time_steps, algo.decay, algo.v_threshold)
+    snn = elite.cfg.algo.snn
+    return neurons.lif_spikes(elite.weights[0] @ observation, snn.time_steps, snn.decay, snn.v_threshold)
 
 
 def make_render_env(env_id: str) -> gym.Env:
@@ -124,23 +124,13 @@ def write_video(frames: list[np.ndarray], path: Path, fps: int) -> Path:
     return path
 
 
-def inference_energy(elite: Elite, spike_rate: float) -> dict[str, float]:
-    """SPN inference energy per env step (pJ): the paper's dense count and the mask-aware one."""
-    x1, x2 = elite.masks
-    h = elite.cfg.algo.hidden
-    return {
-        "dense_pj": e_spn(elite.spec.n_obs, elite.spec.n_act, spike_rate, h),
-        "mask_aware_pj": e_spn_masked(float(x1.sum()), float(x2.sum()), spike_rate),
-    }
-
-
 def summary(elite: Elite, episodes: Episodes) -> dict[str, float]:
     """Mean return, hidden spike rate (per neuron per simulation step) and mask density of a replay."""
-    algo = elite.cfg.algo
+    snn = elite.cfg.algo.snn
     x1, x2 = elite.masks
     return {
         "mean_return": float(episodes.returns.mean()),
-        "spike_rate": spike_rate(episodes.spikes, episodes.steps, algo.hidden, algo.time_steps),
+        "spike_rate": spike_rate(episodes.spikes, episodes.steps, snn.hidden, snn.time_steps),
         "mask_density": mask_density(x1, x2),
     }
 
@@ -203,7 +193,11 @@ def play(args: argparse.Namespace) -> dict[str, float]:
     print(f"mean return {metrics['mean_return']:.2f}  mean episode steps {float(episodes.steps.float().mean()):.1f}")
     print(f"hidden spike rate {metrics['spike_rate']:.4f} spikes per neuron per simulation step")
     print(f"mask density {metrics['mask_density']:.4f}")
-    energy = inference_energy(elite, metrics["spike_rate"])
+    x1, x2 = elite.masks
+    spec = elite.spec
+    energy = inference_energy(
+        spec.n_obs, spec.n_act, elite.cfg.algo.snn.hidden, metrics["spike_rate"], float(x1.sum()), float(x2.sum())
+    )
     metrics.update({f"energy_{k}": v for k, v in energy.items()})
     print(
         f"inference energy per step: {energy['dense_pj']:.1f} pJ (paper, dense), "

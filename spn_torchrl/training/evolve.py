@@ -1,4 +1,4 @@
-"""A GA run: build the env and SPN once, then evaluate, re-evaluate the elite, select, log, checkpoint."""
+"""A GA run: build the env and SPN once, then evaluate, re-evaluate the elite, select, record, checkpoint."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 import torch
-from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl import checkpoint
-from spn_torchrl.envs import task_spec
+from spn_torchrl.config import GAConfig, RunConfig
+from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluation import make_evaluator
 from spn_torchrl.evaluation.rollout import Episodes, spike_rate
-from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger
+from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import FITNESS, REEVALUATION, episode_seeds
 from spn_torchrl.snn.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.training import ga
@@ -24,61 +24,75 @@ from spn_torchrl.training import ga
 log = logging.getLogger("spn_torchrl")
 
 
-def run_meta(cfg: DictConfig, spec) -> dict[str, Any]:
-    """What a checkpoint must match to be resumed by this config."""
+def run_meta(cfg: RunConfig, spec: TaskSpec) -> dict[str, Any]:
+    """What a checkpoint must match to be resumed by this config (beyond the config contract): the format, the
+    task and the network's shape."""
     return {
         "format": checkpoint.GA_FORMAT,
         "env_id": spec.env_id,
         "genome": cfg.algo.genome,
         "n_obs": spec.n_obs,
         "n_act": spec.n_act,
-        "hidden": cfg.algo.hidden,
-        "population": cfg.algo.population,
+        "hidden": cfg.algo.snn.hidden,
     }
 
 
-def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
+def initial_state(algo: GAConfig, spec: TaskSpec, seed: int) -> dict[str, Any]:
+    """Generation 0 of a new run: the fixed weights and the first population, drawn from the run seed."""
+    generator = torch.Generator().manual_seed(seed)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.snn.hidden, generator)
+    center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
+    population = ga.initial_population(algo.population, genome_size(w1, w2), algo.sigma, generator, center)
+    return {
+        "generation": 0,
+        "population": population,
+        "pending": None,
+        "rng": generator.get_state(),
+        "w1": w1,
+        "w2": w2,
+        "elites": torch.empty(0, genome_size(w1, w2)),
+        "total_env_steps": 0,
+        "wall_time_s": 0.0,
+    }
+
+
+def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """Run (or resume) the GA of SPEC.md; returns the last generation's metrics.
 
     The elite re-evaluation of generation g does not change selection (SPEC.md), so it runs in the same
     batched rollout as the population of generation g+1 (one env of N + k x episodes slots), and the last
     generation's in a rollout of its own. Generation g's row is written once its re-evaluation is done.
     Each episode's env seed derives from (run seed, generation, role, index) (:mod:`spn_torchrl.seeds`), so
-    the rows do not depend on how a generation's episodes are split into rollouts, processes or actors.
+    the rows do not depend on how a generation's episodes are split into rollouts, processes or actors, and a
+    run extended to more generations writes the rows of an uninterrupted longer run.
     """
-    algo = cfg.algo
     spec = task_spec(cfg.env.id)
-    meta = run_meta(cfg, spec)
-    ckpt_path = run_dir / checkpoint.CHECKPOINT_NAME
+    with open_run(cfg, run_dir, run_name, "ga", run_meta(cfg, spec)) as run:
+        state = run.state or initial_state(cfg.algo, spec, cfg.seed)
+        done = state["generation"]
+        if cfg.algo.generations < done:
+            raise ConfigError(
+                f"algo.generations={cfg.algo.generations} is below the {done} generations {run_dir} has done"
+            )
+        if done == cfg.algo.generations and state["pending"] is None:
+            log.info("%s already ran its %d generations", run_dir, done)
+            return run.rows[-1] if run.rows else {}
+        if run.state is not None:
+            log.info("resuming %s after generation %d", run_dir, done)
+        return _generations(cfg, spec, run, state)
+
+
+def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]) -> dict[str, Any]:
+    """The GA loop from ``state`` to ``algo.generations``, recording each generation's row and checkpoint."""
+    algo = cfg.algo
     generator = torch.Generator()
-
-    if ckpt_path.exists() and not cfg.resume:
-        raise ConfigError(f"{run_dir} already holds a run: pass resume=true to continue it, or use a new run directory")
-    if cfg.resume and ckpt_path.exists():
-        state = checkpoint.load(ckpt_path, expected=meta)
-        w1, w2 = state["w1"], state["w2"]
-        generator.set_state(state["rng"])
-        population, start = state["population"], state["generation"]
-        elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
-        run_name, wandb_id, pending = state["run_name"], state["wandb_id"], state["pending"]
-        log.info("resuming %s after generation %d", run_dir, start)
-    else:
-        if cfg.resume:
-            log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
-        generator.manual_seed(cfg.seed)
-        w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
-        dim = genome_size(w1, w2)
-        center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
-        population = ga.initial_population(algo.population, dim, algo.sigma, generator, center)
-        start, elites, total_steps, wall, wandb_id, pending = 0, [], 0, 0.0, None, None
-
-    spn = spn_from_config(cfg.algo, spec, w1, w2)
-    progress = Progress(run_dir / "progress.csv", keep_rows=len(elites))
-    evaluator = make_evaluator(cfg, spec, spn)
-    logger = None
+    generator.set_state(state["rng"])
+    w1, w2 = state["w1"], state["w2"]
+    population, start, pending = state["population"], state["generation"], state["pending"]
+    elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
+    spn = spn_from_config(algo.snn, algo.genome, spec, w1, w2)
     k, episodes, n = algo.elite_candidates, algo.elite_episodes, algo.population
     row: dict[str, Any] = {}
-    failed = True
     started = time.perf_counter()
     since_row = {"steps": 0, "wall": wall}  # env steps run and wall time at the previous row
 
@@ -87,7 +101,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         return wall + time.perf_counter() - started
 
     def finish(pending: dict[str, Any], reeval: Episodes) -> None:
-        """Pick the elite of a pending generation from its re-evaluation; write its row."""
+        """Pick the elite of a pending generation from its re-evaluation; record its row."""
         nonlocal total_steps, row
         now = elapsed()
         candidates, fitness = pending["candidates"], pending["fitness"]
@@ -99,6 +113,12 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         steps = pending["steps"] + reeval.total_steps
         total_steps += steps
         generation = pending["generation"]
+        rate = spike_rate(
+            reeval.spikes[slot : slot + episodes],
+            reeval.steps[slot : slot + episodes],
+            algo.snn.hidden,
+            algo.snn.time_steps,
+        )
         row = {
             "generation": generation,
             "eval_return": elite_return,
@@ -109,20 +129,13 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             "wall_time_s": round(now, 3),
             "steps_per_s": round(since_row["steps"] / max(now - since_row["wall"], 1e-9), 1),
             "mask_density": mask_density(mask1, mask2),
-            "spike_rate": spike_rate(
-                reeval.spikes[slot : slot + episodes],
-                reeval.steps[slot : slot + episodes],
-                algo.hidden,
-                algo.time_steps,
-            ),
+            "spike_rate": rate,
             "synapses_l1": int(mask1.sum()),
             "synapses_l2": int(mask2.sum()),
             "elite_index": elite_index,
         }
         since_row.update(steps=0, wall=now)
-        progress.append(row)
-        if logger is not None:
-            logger.log_metrics({f"train/{key}": value for key, value in row.items()}, step=generation)
+        run.record(row, step=generation)
         log.info(
             "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
             generation,
@@ -137,12 +150,8 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         )
 
     def save(generation: int) -> None:
-        checkpoint.save(
+        run.save(
             {
-                "meta": meta,
-                "config": OmegaConf.to_yaml(cfg, resolve=True),
-                "run_name": run_name,
-                "wandb_id": wandb_id,
                 "generation": generation,
                 "population": population,
                 "pending": pending,
@@ -152,8 +161,7 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
                 "total_env_steps": total_steps,
                 "wall_time_s": elapsed(),
-            },
-            run_dir,
+            }
         )
 
     def rollout(genomes: torch.Tensor, seeds: np.ndarray) -> Episodes:
@@ -161,15 +169,17 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         since_row["steps"] += result.total_steps
         return result
 
+    def reevaluation(pending: dict[str, Any]) -> tuple[torch.Tensor, np.ndarray]:
+        genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
+        return genomes, episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes)
+
+    evaluator = make_evaluator(cfg, spec, spn)
     try:
-        logger = make_logger(cfg, run_dir, run_name, wandb_id)
-        log.info("run %s in %s", run_name, run_dir)
-        wandb_id = logger_run_id(logger)
         for generation in range(start + 1, algo.generations + 1):
             genomes, seeds = [population], [episode_seeds(cfg.seed, generation, FITNESS, n)]
             if pending is not None:
-                genomes.append(ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes))
-                seeds.append(episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes))
+                for part, into in zip(reevaluation(pending), (genomes, seeds)):
+                    into.append(part)
             result = rollout(torch.cat(genomes), np.concatenate(seeds))
             fitness_eps = result.part(0, n)
             if pending is not None:
@@ -192,16 +202,9 @@ def evolve(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             )
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
-            genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
-            finish(
-                pending, rollout(genomes, episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes))
-            )
+            finish(pending, rollout(*reevaluation(pending)))
             pending = None
             save(algo.generations)
-        failed = False
     finally:
-        try:
-            evaluator.close()
-        finally:
-            close_logger(logger, failed)
+        evaluator.close()
     return row

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from omegaconf import DictConfig, OmegaConf
 from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictSequential
 from torch import nn
 from torchrl.collectors import Collector
@@ -26,9 +25,10 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
 from spn_torchrl import checkpoint
-from spn_torchrl.envs import TaskSpec, make_population_env, task_spec
+from spn_torchrl.config import RunConfig
+from spn_torchrl.envs import TaskSpec, make_transformed_env, task_spec
 from spn_torchrl.errors import ConfigError
-from spn_torchrl.records import Progress, logger_run_id, make_logger
+from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import COLLECTION, EVALUATION, episode_seed
 from spn_torchrl.snn.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.snn.surrogate import surrogate_spike
@@ -44,17 +44,17 @@ def dpn(n_obs: int, n_act: int, hidden: int, discrete: bool) -> nn.Module:
     return nn.Sequential(*layers) if discrete else nn.Sequential(*layers, nn.Tanh())
 
 
-def spn_net(cfg: DictConfig, spec: TaskSpec) -> TrainableSPN:
+def spn_net(cfg: RunConfig, spec: TaskSpec) -> TrainableSPN:
     """The GA's SPN for this seed (same generator, same fixed weights) with trainable scores drawn after them."""
     algo = cfg.algo
     generator = torch.Generator().manual_seed(cfg.seed)
-    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.hidden, generator)
-    spn = spn_from_config(algo, spec, w1, w2)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.snn.hidden, generator)
+    spn = spn_from_config(algo.snn, "connections", spec, w1, w2)
     scores = algo.score_init_std * torch.randn(spn.genome_size, generator=generator)
     return TrainableSPN(spn, scores, surrogate_spike(algo.surrogate, algo.surrogate_alpha))
 
 
-def make_actor(cfg: DictConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticActor:
+def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticActor:
     """The stochastic policy: Gaussian (state-independent log-std) around the net's output, or Categorical."""
     algo = cfg.algo
     net = spn_net(cfg, spec) if algo.policy == "spn" else dpn(spec.n_obs, spec.n_act, algo.hidden, spec.discrete)
@@ -112,8 +112,8 @@ class Counts:
             self.values[key] += int(value)
 
 
-def run_meta(cfg: DictConfig, spec: TaskSpec) -> dict[str, Any]:
-    """What a checkpoint must match to be resumed by this config."""
+def run_meta(cfg: RunConfig, spec: TaskSpec) -> dict[str, Any]:
+    """What a checkpoint must match to be resumed by this config (beyond the config contract)."""
     algo = cfg.algo
     return {
         "format": checkpoint.PPO_FORMAT,
@@ -122,27 +122,34 @@ def run_meta(cfg: DictConfig, spec: TaskSpec) -> dict[str, Any]:
         "n_obs": spec.n_obs,
         "n_act": spec.n_act,
         "hidden": algo.hidden,
-        "frames_per_batch": algo.frames_per_batch,
-        "seed": cfg.seed,
     }
 
 
-def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
+def train_ppo(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """Run (or resume) PPO; returns the last iteration's metrics."""
-    algo = cfg.algo
     spec = task_spec(cfg.env.id)
-    meta = run_meta(cfg, spec)
-    ckpt_path = run_dir / checkpoint.CHECKPOINT_NAME
-    if ckpt_path.exists() and not cfg.resume:
-        raise ConfigError(f"{run_dir} already holds a run: pass resume=true to continue it, or use a new run directory")
-    iterations = algo.total_env_steps // algo.frames_per_batch
-    state = checkpoint.load(ckpt_path, expected=meta) if cfg.resume and ckpt_path.exists() else None
-    if cfg.resume and state is None:
-        log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
+    with open_run(cfg, run_dir, run_name, "ppo", run_meta(cfg, spec)) as run:
+        iterations = cfg.algo.total_env_steps // cfg.algo.frames_per_batch
+        done = 0 if run.state is None else run.state["iteration"]
+        if iterations < done:
+            raise ConfigError(
+                f"algo.total_env_steps={cfg.algo.total_env_steps} is below the {done * cfg.algo.frames_per_batch} "
+                f"env steps {run_dir} has done"
+            )
+        if done == iterations:
+            log.info("%s already ran its %d iterations", run_dir, iterations)
+            return run.rows[-1] if run.rows else {}
+        if run.state is not None:
+            log.info("resuming %s after iteration %d", run_dir, done)
+        return _iterations(cfg, spec, run, done, iterations)
 
+
+def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations: int) -> dict[str, Any]:
+    """PPO from iteration ``start`` to ``iterations``, recording each iteration's row and checkpoint."""
+    algo = cfg.algo
     torch.manual_seed(cfg.seed)
-    env = make_population_env(spec.env_id, 1, backend=cfg.env.backend)
-    eval_env = make_population_env(spec.env_id, algo.eval_episodes, backend=cfg.env.backend)
+    env = make_transformed_env(spec.env_id, 1, backend=cfg.env.backend)
+    eval_env = make_transformed_env(spec.env_id, algo.eval_episodes, backend=cfg.env.backend)
     actor = make_actor(cfg, spec, env)
     critic = make_critic(spec, algo.hidden)
     loss_module = ClipPPOLoss(
@@ -160,20 +167,15 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         [{"params": actor.parameters(), "lr": algo.lr_policy}, {"params": critic.parameters(), "lr": algo.lr_value}]
     )
     counts = Counts()
-    start, wall, wandb_id = 0, 0.0, None
-    if state is not None:
+    wall = 0.0
+    if run.state is not None:
+        state = run.state
         actor.load_state_dict(state["actor"])
         critic.load_state_dict(state["critic"])
         optim.load_state_dict(state["optim"])
         counts.values.update(state["counts"])
-        start, wall, run_name, wandb_id = state["iteration"], state["wall_time_s"], state["run_name"], state["wandb_id"]
+        wall = state["wall_time_s"]
         torch.set_rng_state(state["torch_rng"])
-        log.info("resuming %s after iteration %d", run_dir, start)
-    if start >= iterations:
-        env.close()
-        eval_env.close()
-        log.info("%s already ran its %d iterations", run_dir, iterations)
-        return {}
 
     next_iteration = [start + 1]
 
@@ -195,13 +197,9 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
         sampler=SamplerWithoutReplacement(),
         batch_size=algo.minibatch_size,
     )
-    progress = Progress(run_dir / "progress.csv", keep_rows=start)
-    logger = None
     row: dict[str, Any] = {}
     t0 = time.perf_counter()
     try:
-        logger = make_logger(cfg, run_dir, run_name, wandb_id)
-        wandb_id = logger_run_id(logger)
         for iteration, data in enumerate(collector, start=start + 1):
             frames = data.numel()
             counts.add(policy_forward=frames)
@@ -253,18 +251,9 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                 "steps_per_s": round(frames / seconds, 1),
                 **counts.values,
             }
-            progress.append(row)
-            if logger is not None:
-                logger.log_metrics(
-                    {f"{'eval' if key == 'eval_return' else 'train'}/{key}": value for key, value in row.items()},
-                    step=iteration,
-                )
-            checkpoint.save(
+            run.record(row, step=iteration, prefix={"eval_return": "eval"})
+            run.save(
                 {
-                    "meta": meta,
-                    "config": OmegaConf.to_yaml(cfg, resolve=True),
-                    "run_name": run_name,
-                    "wandb_id": wandb_id,
                     "iteration": iteration,
                     "actor": actor.state_dict(),
                     "critic": critic.state_dict(),
@@ -272,8 +261,7 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
                     "torch_rng": torch.get_rng_state(),
                     "counts": dict(counts.values),
                     "wall_time_s": wall,
-                },
-                run_dir,
+                }
             )
             next_iteration[0] = iteration + 1
             log.info(
@@ -290,8 +278,6 @@ def train_ppo(cfg: DictConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     finally:
         collector.shutdown()
         eval_env.close()
-        if logger is not None:
-            logger.close()
     return row
 
 
@@ -312,11 +298,11 @@ def _mask_density(actor: ProbabilisticActor) -> float:
     return math.nan
 
 
-def load_actor(run_dir: Path, cfg: DictConfig) -> tuple[ProbabilisticActor, TaskSpec]:
+def load_actor(run_dir: Path, cfg: RunConfig) -> tuple[ProbabilisticActor, TaskSpec]:
     """The trained stochastic actor of a PPO run's checkpoint (use the DETERMINISTIC exploration type to act)."""
     spec = task_spec(cfg.env.id)
     state = checkpoint.load(run_dir, expected=run_meta(cfg, spec))
-    env = make_population_env(spec.env_id, 1, backend=cfg.env.backend)
+    env = make_transformed_env(spec.env_id, 1, backend=cfg.env.backend)
     try:
         actor = make_actor(cfg, spec, env)
     finally:

@@ -1,0 +1,231 @@
+"""The run lifecycle the GA and PPO share: open or resume a run directory under the config contract, record its
+rows (progress.csv, logger) and checkpoints, and end it cleanly on success, failure or a signal.
+
+The config contract: a checkpoint holds the run's resolved config. A resume compares the new config with it; a
+field that changes results is refused (one sentence naming each such field, old and new value), a field that
+cannot (:data:`SAFE`) is allowed and logged, and the budget (:data:`BUDGET`) may grow. The checkpoint also holds
+every row written so far, so progress.csv is restored from it on resume.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import signal
+import sys
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from omegaconf import OmegaConf
+
+from spn_torchrl import checkpoint
+from spn_torchrl.config import RunConfig, config_dict
+from spn_torchrl.errors import CheckpointError, ConfigError, RunFileError, RunInterrupted
+from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger, write_atomic
+
+log = logging.getLogger("spn_torchrl")
+
+# fields that cannot change a run's results: a resume may change them (logged)
+SAFE = ("resume", "run_name", "torch_threads", "env.threads", "logger", "evaluator")
+# the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
+# rows an uninterrupted run of the new budget writes
+BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
+PROGRESS_NAME = "progress.csv"
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        path = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, f"{path}."))
+        else:
+            out[path] = value
+    return out
+
+
+def _safe(path: str) -> bool:
+    return any(path == s or path.startswith(f"{s}.") for s in SAFE)
+
+
+def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) -> tuple[list[str], list[str]]:
+    """The differences between a run's saved config and a resume's: (refused, allowed), as ``field old -> new``."""
+    old_flat, new_flat = flatten(saved), flatten(new)
+    refused, allowed = [], []
+    for path in sorted(set(old_flat) | set(new_flat)):
+        old, now = old_flat.get(path, "<absent>"), new_flat.get(path, "<absent>")
+        if old == now:
+            continue
+        change = f"{path} {old!r} -> {now!r}"
+        (allowed if _safe(path) or path == BUDGET[kind] else refused).append(change)
+    return refused, allowed
+
+
+@dataclass
+class Run:
+    """An open run directory: its typed config, name, restored state and the places its rows go."""
+
+    dir: Path
+    cfg: RunConfig
+    name: str
+    kind: str
+    meta: dict[str, Any]
+    state: dict[str, Any] | None  # the checkpoint being resumed, None for a new run
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    logger: Any = None
+    wandb_id: str | None = None
+    progress: Progress | None = None
+
+    def record(self, row: Mapping[str, Any], step: int, prefix: Mapping[str, str] | None = None) -> None:
+        """Append a row to progress.csv and log it (metrics under ``train/``, or the prefix a column names)."""
+        with deferred_signals():
+            self.rows.append(dict(row))
+            self.progress.write(self.rows)
+            if self.logger is not None:
+                prefix = prefix or {}
+                metrics = {f"{prefix.get(key, 'train')}/{key}": value for key, value in row.items()}
+                self.logger.log_metrics(metrics, step=step)
+
+    def save(self, state: Mapping[str, Any]) -> None:
+        """Write the checkpoint: the loop's ``state`` with the run's meta, config, name, W&B id and rows."""
+        with deferred_signals():
+            checkpoint.save(
+                {
+                    **state,
+                    "meta": self.meta,
+                    "config": config_dict(self.cfg),
+                    "run_name": self.name,
+                    "wandb_id": self.wandb_id,
+                    "rows": list(self.rows),
+                },
+                self.dir,
+            )
+
+
+def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]) -> dict[str, Any] | None:
+    """The checkpoint to continue (None: a new run), after the config contract; ConfigError for a directory that
+    holds another run or a config that would change the results."""
+    ckpt = run_dir / checkpoint.CHECKPOINT_NAME
+    if not ckpt.exists():
+        if (run_dir / PROGRESS_NAME).exists():
+            raise ConfigError(
+                f"{run_dir} holds {PROGRESS_NAME} but no {checkpoint.CHECKPOINT_NAME}: this run cannot be resumed or "
+                "overwritten; use a new run directory"
+            )
+        if cfg.resume:
+            log.info("resume=true but %s holds no checkpoint: starting a new run", run_dir)
+        return None
+    if not cfg.resume:
+        raise ConfigError(f"{run_dir} already holds a run: pass resume=true to continue it, or use a new run directory")
+    state = checkpoint.load(ckpt, expected={"format": meta["format"]})
+    if state["meta"] != meta:
+        changed = [f"{k} {state['meta'].get(k)!r} -> {v!r}" for k, v in meta.items() if state["meta"].get(k) != v]
+        raise CheckpointError(
+            f"{ckpt} belongs to another task or network ({', '.join(changed)}): use a new run directory"
+        )
+    refused, allowed = config_changes(state["config"], config_dict(cfg), kind)
+    if refused:
+        _restore_hydra_config(run_dir, state["config"])
+        raise ConfigError(
+            f"resume=true with a config that would change the results of {run_dir}: {'; '.join(refused)}; "
+            "resume with the run's values or use a new run directory"
+        )
+    for change in allowed:
+        log.info("resume: %s (does not change results)", change)
+    return state
+
+
+def _restore_hydra_config(run_dir: Path, config: Mapping[str, Any]) -> None:
+    """Hydra rewrote .hydra/config.yaml with the refused values before the run started: put the run's back."""
+    hydra_config = run_dir / ".hydra" / "config.yaml"
+    if hydra_config.exists():
+        write_atomic(hydra_config, OmegaConf.to_yaml(OmegaConf.create(dict(config))))
+
+
+@contextlib.contextmanager
+def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str, Any]) -> Iterator[Run]:
+    """Open (or resume) the run in ``run_dir``; the logger is finished on the way out (a W&B run marked failed with
+    the exit code when the body raised or a signal stopped it), and the run's config and rows on disk are the
+    checkpoint's."""
+    state = _resume_state(cfg, run_dir, kind, meta)
+    run = Run(run_dir, cfg, name, kind, meta, state)
+    if state is not None:
+        run.name, run.wandb_id, run.rows = state["run_name"], state["wandb_id"], list(state["rows"])
+    run.progress = Progress(run_dir / PROGRESS_NAME)
+    if run.rows:
+        run.progress.write(run.rows)  # progress.csv is the checkpoint's rows, even if it was lost or cut
+    exit_code = 1
+    try:
+        try:
+            run.logger = make_logger(cfg, run_dir, run.name, run.wandb_id)
+        except OSError as err:
+            raise RunFileError.of(err, run_dir / "logs", "the logger's directory") from None
+        run.wandb_id = logger_run_id(run.logger)
+        log.info("run %s in %s", run.name, run_dir)
+        yield run
+        exit_code = 0
+    except RunInterrupted as err:
+        exit_code = 128 + err.signum
+        raise
+    finally:
+        close_logger(run.logger, exit_code)
+
+
+_critical = 0
+_pending: list[int] = []
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[None]:
+    """A section that SIGINT and SIGTERM do not cut: a signal that arrives inside is raised when it ends."""
+    global _critical
+    _critical += 1
+    try:
+        yield
+    finally:
+        _critical -= 1
+    if _critical == 0 and _pending:
+        _raise(_pending.pop())
+
+
+def _raise(signum: int) -> None:
+    raise RunInterrupted(signum)
+
+
+def _handler(signum: int, frame: Any) -> None:
+    if _critical:
+        _pending.append(signum)
+    else:
+        _raise(signum)
+
+
+@contextlib.contextmanager
+def signals_interrupt() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`RunInterrupted` (outside :func:`deferred_signals` sections) while the body
+    runs; the previous handlers come back afterwards. A no-op outside the main thread."""
+    try:
+        previous = {sig: signal.signal(sig, _handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        _pending.clear()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def resume_hint(run_dir: Path) -> str:
+    """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
+    overrides: list[str] = []
+    with contextlib.suppress(Exception):
+        from hydra.core.hydra_config import HydraConfig
+
+        overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
+    return " ".join(
+        ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}", "resume=true"]
+    )
