@@ -5,7 +5,7 @@ import sys
 import hydra
 from omegaconf import DictConfig
 
-from spn_torchrl import SpnError, run
+from spn_torchrl import RunInterrupted, SpnError, run
 from spn_torchrl.config import register_configs
 
 register_configs()
@@ -15,6 +15,9 @@ register_configs()
 def main(cfg: DictConfig) -> None:
     try:
         run(cfg)
+    except RunInterrupted as err:
+        print(f"stopped: {err}", file=sys.stderr)
+        sys.exit(128 + err.signum)
     except SpnError as err:
         sys.exit(f"error: {err}")
 
