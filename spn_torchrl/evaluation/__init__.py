@@ -15,7 +15,7 @@ from omegaconf import DictConfig
 
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import ConfigError, require
-from spn_torchrl.evaluation.processes import ProcessEvaluator, spawn_blocked_by
+from spn_torchrl.evaluation.processes import CALL_TIMEOUT_S, ProcessEvaluator, spawn_blocked_by
 from spn_torchrl.evaluation.rollout import Evaluator, PopulationEvaluator, evaluation_slots
 from spn_torchrl.snn.policies import PopulationSPN
 
@@ -33,6 +33,7 @@ def local_evaluator(cfg: DictConfig, spec: TaskSpec, spn: PopulationSPN) -> Eval
         spec.max_episode_steps,
         cfg.env.processes,
         cfg.evaluator.start_timeout_s,
+        cfg.evaluator.get("call_timeout_s", CALL_TIMEOUT_S),
     )
 
 
@@ -45,14 +46,16 @@ def machine_evaluator(
     max_episode_steps: int,
     processes: int = 1,
     start_timeout_s: float = 300.0,
+    call_timeout_s: float | None = CALL_TIMEOUT_S,
 ) -> Evaluator:
     """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
-    > 1, one shard of them in each worker process (spn_torchrl/process_evaluator.py)."""
+    > 1, one shard of them in each worker process (spn_torchrl/process_evaluator.py), each call within
+    ``call_timeout_s``."""
     if processes > 1:
         blocker = spawn_blocked_by()
         if blocker is None:
             return ProcessEvaluator(
-                spn, env_id, slots, backend, num_workers, max_episode_steps, processes, start_timeout_s
+                spn, env_id, slots, backend, num_workers, max_episode_steps, processes, start_timeout_s, call_timeout_s
             )
         log.warning("env.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker)
     return PopulationEvaluator(
