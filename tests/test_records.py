@@ -1,6 +1,9 @@
+import os
+import stat
+
 import pytest
 
-from spn_torchrl.records import Progress, read_progress, wandb_mode, write_atomic
+from spn_torchrl.records import Progress, current_umask, read_progress, wandb_mode, write_atomic
 
 
 def test_write_atomic_replaces_whole_file(tmp_path):
@@ -8,6 +11,25 @@ def test_write_atomic_replaces_whole_file(tmp_path):
     write_atomic(path, "one")
     write_atomic(path, b"two")
     assert path.read_text() == "two" and [p.name for p in path.parent.iterdir()] == ["f.txt"]
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o027, 0o002])
+def test_write_atomic_gives_the_mode_open_gives(tmp_path, umask):
+    def mode(path):
+        return stat.S_IMODE(path.stat().st_mode)
+
+    old = os.umask(umask)
+    try:
+        assert current_umask() == umask
+        write_atomic(tmp_path / "new.csv", "x")
+        with open(tmp_path / "plain.csv", "w") as f:
+            f.write("x")
+        assert mode(tmp_path / "new.csv") == mode(tmp_path / "plain.csv") == 0o666 & ~umask
+        (tmp_path / "new.csv").chmod(0o640)  # like open(path, "w"), a rewrite keeps the file's own mode
+        write_atomic(tmp_path / "new.csv", "y")
+        assert mode(tmp_path / "new.csv") == 0o640 and (tmp_path / "new.csv").read_text() == "y"
+    finally:
+        os.umask(old)
 
 
 def test_progress_rows_roundtrip_and_truncate_on_resume(tmp_path):
