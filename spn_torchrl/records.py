@@ -113,6 +113,46 @@ def _number(text: str) -> Any:
     return text
 
 
+def trim_csv_logs(run_dir: Path, last_step: int) -> int:
+    """Cut the CSV logger's scalar files (``run_dir/logs/*/scalars/**/*.csv``, lines ``step,value``) to what a
+    checkpoint holds: one row per step up to ``last_step`` (a repeated step keeps its last row), none for a
+    run without a checkpoint (``last_step=0``); rewritten atomically. Returns the number of rows dropped.
+
+    torchrl's CSVLogger only appends, and a run logs a row before the checkpoint that holds it is written, so
+    a run killed in between logs that row again when it resumes. Call this before the resumed run's logger
+    opens its files: a file the logger already holds open keeps receiving rows after it is replaced."""
+    dropped = 0
+    for path in sorted(Path(run_dir).glob("logs/*/scalars/**/*.csv")):
+        text = path.read_text()
+        lines = text.split("\n")
+        torn = lines.pop()  # "" where the file ends with a newline, else a torn last write: dropped
+        rows: dict[float, str] = {}
+        for line in lines:
+            step = _csv_step(line)
+            if step is not None and step <= last_step:
+                rows[step] = line
+        kept = "".join(line + "\n" for line in rows.values())
+        if kept == text:
+            continue
+        dropped += len(lines) + bool(torn) - len(rows)
+        if kept:
+            write_atomic(path, kept)
+        else:
+            path.unlink()
+    if dropped:
+        log.info("dropped %d rows of %s/logs that the checkpoint (step %d) does not hold", dropped, run_dir, last_step)
+    return dropped
+
+
+def _csv_step(line: str) -> float | None:
+    """The step of a CSVLogger line ``step,value``, None for a malformed one."""
+    step, comma, value = line.partition(",")
+    try:
+        return float(step) if comma and value else None
+    except ValueError:
+        return None
+
+
 def wandb_mode(requested: str) -> str:
     """'auto' is online only where W&B credentials exist (env var or netrc), else offline: no network probe."""
     if requested != "auto":

@@ -2,8 +2,9 @@ import os
 import stat
 
 import pytest
+from torchrl.record.loggers import CSVLogger
 
-from spn_torchrl.records import Progress, current_umask, read_progress, wandb_mode, write_atomic
+from spn_torchrl.records import Progress, current_umask, read_progress, trim_csv_logs, wandb_mode, write_atomic
 
 
 def test_write_atomic_replaces_whole_file(tmp_path):
@@ -44,6 +45,48 @@ def test_progress_rows_roundtrip_and_truncate_on_resume(tmp_path):
     assert read_progress(path)[-1]["eval_return"] == 9.0
     Progress(path, keep_rows=0)  # a fresh run in the same file starts empty
     assert not path.exists()
+
+
+def log_rows(run_dir, name, steps, run):
+    logger = CSVLogger(exp_name=name, log_dir=str(run_dir / "logs"))
+    for step in steps:
+        metrics = {"train/return": 10.0 * step + run, "train/generation": step}
+        if step % 2 == 0:
+            metrics["eval/return"] = step + 0.5  # a metric of some steps only, like PPO's eval_return
+        logger.log_metrics(metrics, step=step)
+    logger.close()
+    del logger  # torchrl's CSVExperiment closes its files when collected
+
+
+def logged(run_dir, name, metric):
+    path = run_dir / "logs" / name / "scalars" / f"{metric}.csv"
+    return [tuple(float(x) for x in line.split(",")) for line in path.read_text().splitlines()]
+
+
+def test_trimmed_csv_logs_resume_without_duplicates(tmp_path):
+    log_rows(tmp_path, "run", range(1, 6), run=0)  # logged up to 5, killed with a checkpoint holding 3 rows
+    eval_file = tmp_path / "logs" / "run" / "scalars" / "eval" / "return.csv"
+    mode = eval_file.stat().st_mode
+    with open(eval_file, "a") as f:
+        f.write("6,6.")  # a torn last write
+    assert trim_csv_logs(tmp_path, 3) == 2 + 2 + 2  # steps 4, 5 of each metric, the torn line
+    log_rows(tmp_path, "run", range(4, 7), run=1)  # the resumed run logs 4..6 again
+    assert logged(tmp_path, "run", "train/return") == [(1, 10), (2, 20), (3, 30), (4, 41), (5, 51), (6, 61)]
+    assert logged(tmp_path, "run", "train/generation") == [(s, s) for s in range(1, 7)]
+    assert logged(tmp_path, "run", "eval/return") == [(2, 2.5), (4, 4.5), (6, 6.5)]
+    assert eval_file.stat().st_mode == mode
+    assert trim_csv_logs(tmp_path, 6) == 0 and trim_csv_logs(tmp_path / "none", 6) == 0
+    log_rows(tmp_path, "stale", [1], run=0)  # an attempt under another name, killed before any checkpoint
+    trim_csv_logs(tmp_path, 0)  # the new run that follows it: no row is held
+    assert not list((tmp_path / "logs").glob("*/scalars/**/*.csv"))
+
+
+def test_trim_csv_logs_keeps_the_last_of_repeated_steps(tmp_path):
+    path = tmp_path / "logs" / "run" / "scalars" / "train" / "x.csv"
+    path.parent.mkdir(parents=True)
+    path.write_text("1,1.0\n2,2.0\n2,2.5\nnot a row\n3,3.0\n")  # a log written before this fix
+    assert trim_csv_logs(tmp_path, 3) == 2
+    assert path.read_text() == "1,1.0\n2,2.5\n3,3.0\n"
 
 
 @pytest.mark.parametrize(
