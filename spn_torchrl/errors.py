@@ -17,6 +17,10 @@ class EvaluatorError(SpnError):
     """A remote evaluator could not start, lost a worker, or did not answer in time."""
 
 
+class RunFileError(SpnError, OSError):
+    """A file of a run could not be written: the message names the path and what was expected."""
+
+
 class DependencyError(SpnError, ImportError):
     """An optional dependency (an extra of the package) or a system library is missing."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import logging
 import netrc
@@ -16,6 +17,8 @@ from typing import Any
 
 import torch
 from omegaconf import DictConfig, OmegaConf
+
+from spn_torchrl.errors import RunFileError
 
 log = logging.getLogger("spn_torchrl")
 _UMASK_LOCK = threading.Lock()
@@ -40,14 +43,18 @@ def current_umask() -> int:
 
 def write_atomic(path: Path, data: bytes | str) -> None:
     """Write a file so that a reader (or a killed run) sees either the old or the new content, with the mode
-    ``open(path, "w")`` gives: an existing file's own, else 0o666 less the umask."""
+    ``open(path, "w")`` gives: an existing file's own, else 0o666 less the umask. A failure raises
+    :class:`~spn_torchrl.errors.RunFileError`."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        mode = stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        mode = 0o666 & ~current_umask()
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")  # mode 0o600
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~current_umask()
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")  # mode 0o600
+    except OSError as err:
+        raise run_file_error(path, err) from None
     try:
         with os.fdopen(fd, "wb") as f:
             os.fchmod(f.fileno(), mode)
@@ -55,9 +62,33 @@ def write_atomic(path: Path, data: bytes | str) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(err, OSError):
+            raise run_file_error(path, err) from None
         raise
+
+
+_WRITE_ERRORS = {
+    errno.ENOSPC: "no space left on device",
+    errno.EDQUOT: "the disk quota is exceeded",
+    errno.EROFS: "the file system is read-only",
+}
+
+
+def run_file_error(path: Path, err: OSError) -> RunFileError:
+    """One sentence for an error met writing a run's file ``path``: the path and what was expected there."""
+    path = Path(path)
+    if path.is_dir():
+        return RunFileError(f"{path} is a directory, expected a file")
+    for parent in reversed(path.parents):
+        if parent.exists() and not parent.is_dir():
+            return RunFileError(f"{parent} is a file, expected a directory (to hold {path})")
+    if err.errno in (errno.EACCES, errno.EPERM):
+        nearest = next((parent for parent in path.parents if parent.exists()), path.parent)
+        return RunFileError(f"cannot write {path}: the directory {nearest} is not writable ({err.strerror})")
+    reason = _WRITE_ERRORS.get(err.errno, err.strerror or type(err).__name__)
+    return RunFileError(f"cannot write {path}: {reason}")
 
 
 def save_torch_atomic(obj: Any, path: Path) -> None:

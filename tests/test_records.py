@@ -1,9 +1,12 @@
 import os
 import stat
+import tempfile
+from pathlib import Path
 
 import pytest
 from torchrl.record.loggers import CSVLogger
 
+from spn_torchrl.errors import RunFileError
 from spn_torchrl.records import Progress, current_umask, read_progress, trim_csv_logs, wandb_mode, write_atomic
 
 
@@ -31,6 +34,55 @@ def test_write_atomic_gives_the_mode_open_gives(tmp_path, umask):
         assert mode(tmp_path / "new.csv") == 0o640 and (tmp_path / "new.csv").read_text() == "y"
     finally:
         os.umask(old)
+
+
+def write_error(path) -> str:
+    """The message write_atomic raises for ``path``, '' if it writes."""
+    try:
+        write_atomic(path, "x")
+    except RunFileError as err:
+        return str(err)
+    return ""
+
+
+def write_error_unprivileged(path) -> str:
+    """:func:`write_error` where file permissions apply: for root, in a child process running as nobody."""
+    if os.geteuid() != 0:
+        return write_error(path)
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child only writes and reports: no pytest teardown, no atexit
+        try:
+            os.setgid(65534)
+            os.setuid(65534)
+            os.write(write, write_error(path).encode())
+        finally:
+            os._exit(0)
+    os.close(write)
+    with os.fdopen(read) as f:
+        message = f.read()
+    os.waitpid(pid, 0)
+    return message
+
+
+def test_write_atomic_errors_name_the_path_and_what_was_expected(tmp_path):
+    with tempfile.TemporaryDirectory(dir="/tmp") as top:  # tmp_path's parents may be closed to other users
+        Path(top).chmod(0o755)
+        read_only = Path(top) / "run"
+        read_only.mkdir(mode=0o555)
+        assert write_error_unprivileged(read_only / "progress.csv") == (
+            f"cannot write {read_only}/progress.csv: the directory {read_only} is not writable (Permission denied)"
+        )
+        assert write_error_unprivileged(read_only / "logs" / "x.csv") == (
+            f"cannot write {read_only}/logs/x.csv: the directory {read_only} is not writable (Permission denied)"
+        )
+        assert not list(read_only.iterdir())
+    (tmp_path / "progress.csv").mkdir()
+    assert write_error(tmp_path / "progress.csv") == f"{tmp_path}/progress.csv is a directory, expected a file"
+    (tmp_path / "run").write_text("")
+    for path in (tmp_path / "run" / "checkpoint.pt", tmp_path / "run" / "logs" / "x.csv"):
+        assert write_error(path) == f"{tmp_path}/run is a file, expected a directory (to hold {path})"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["progress.csv", "run"]  # no temporary file is left
 
 
 def test_progress_rows_roundtrip_and_truncate_on_resume(tmp_path):
