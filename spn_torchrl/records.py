@@ -117,7 +117,10 @@ class Progress:
 
     def _write(self) -> None:
         if not self.rows:
-            self.path.unlink(missing_ok=True)
+            try:
+                self.path.unlink(missing_ok=True)
+            except OSError as err:
+                raise run_file_error(self.path, err) from None
             return
         out = io.StringIO()
         writer = csv.DictWriter(out, fieldnames=list(self.rows[0]), extrasaction="ignore")
@@ -229,7 +232,10 @@ def make_logger(cfg: DictConfig, run_dir: Path, run_name: str, run_id: str | Non
     if backend == "csv":
         from torchrl.record.loggers import CSVLogger
 
-        return CSVLogger(exp_name=run_name, log_dir=str(run_dir / "logs"))
+        try:
+            return CSVLogger(exp_name=run_name, log_dir=str(run_dir / "logs"))
+        except OSError as err:
+            raise run_file_error(run_dir / "logs" / run_name / "scalars", err) from None
     from torchrl.record.loggers import WandbLogger
 
     mode = wandb_mode(cfg.logger.mode)

@@ -4,10 +4,19 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from omegaconf import OmegaConf
 from torchrl.record.loggers import CSVLogger
 
 from spn_torchrl.errors import RunFileError
-from spn_torchrl.records import Progress, current_umask, read_progress, trim_csv_logs, wandb_mode, write_atomic
+from spn_torchrl.records import (
+    Progress,
+    current_umask,
+    make_logger,
+    read_progress,
+    trim_csv_logs,
+    wandb_mode,
+    write_atomic,
+)
 
 
 def test_write_atomic_replaces_whole_file(tmp_path):
@@ -83,6 +92,15 @@ def test_write_atomic_errors_name_the_path_and_what_was_expected(tmp_path):
     for path in (tmp_path / "run" / "checkpoint.pt", tmp_path / "run" / "logs" / "x.csv"):
         assert write_error(path) == f"{tmp_path}/run is a file, expected a directory (to hold {path})"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["progress.csv", "run"]  # no temporary file is left
+    with pytest.raises(RunFileError, match="progress.csv is a directory, expected a file"):
+        Progress(tmp_path / "progress.csv")  # a new run clears its progress.csv
+    (tmp_path / "run").unlink()
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "logs").write_text("")  # a file where the CSV logger's directory belongs
+    with pytest.raises(
+        RunFileError, match=r"run/logs is a file, expected a directory \(to hold .*/logs/name/scalars\)"
+    ):
+        make_logger(OmegaConf.create({"logger": {"backend": "csv"}}), tmp_path / "run", "name")
 
 
 def test_progress_rows_roundtrip_and_truncate_on_resume(tmp_path):
