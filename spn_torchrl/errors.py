@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import errno
 import signal
 
 
@@ -22,24 +21,8 @@ class EvaluatorError(SpnError):
     """A remote evaluator could not start, lost a worker, or did not answer in time."""
 
 
-class RunFileError(SpnError):
-    """A file or directory of a run cannot be written (read-only, full disk, a file where a directory belongs)."""
-
-    @classmethod
-    def of(cls, err: OSError, path: object, what: str = "a file") -> RunFileError:
-        """One sentence for an OSError met while writing ``path`` (``what`` it should be)."""
-        reasons = {
-            errno.EACCES: "permission denied",
-            errno.EPERM: "permission denied",
-            errno.EROFS: "the file system is read-only",
-            errno.ENOSPC: "no space left on device",
-            errno.EDQUOT: "disk quota exceeded",
-            errno.EISDIR: f"it is a directory, expected {what}",
-            errno.ENOTDIR: f"a file stands where a directory belongs on the way to {what}",
-            errno.EEXIST: f"a file stands where {what} belongs",
-        }
-        where = getattr(err, "filename", None) or path
-        return cls(f"cannot write {where}: {reasons.get(err.errno, err.strerror or type(err).__name__)}")
+class RunFileError(SpnError, OSError):
+    """A file of a run could not be written: the message names the path and what was expected."""
 
 
 class RunInterrupted(SpnError):

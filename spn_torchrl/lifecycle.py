@@ -22,8 +22,8 @@ from omegaconf import OmegaConf
 
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, config_dict
-from spn_torchrl.errors import CheckpointError, ConfigError, RunFileError, RunInterrupted
-from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger, write_atomic
+from spn_torchrl.errors import CheckpointError, ConfigError, RunInterrupted
+from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger, trim_csv_logs, write_atomic
 
 log = logging.getLogger("spn_torchrl")
 
@@ -159,10 +159,8 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
         run.progress.write(run.rows)  # progress.csv is the checkpoint's rows, even if it was lost or cut
     exit_code = 1
     try:
-        try:
-            run.logger = make_logger(cfg, run_dir, run.name, run.wandb_id)
-        except OSError as err:
-            raise RunFileError.of(err, run_dir / "logs", "the logger's directory") from None
+        trim_csv_logs(run_dir, _last_step(run.rows))  # rows logged after the checkpoint was written
+        run.logger = make_logger(cfg, run_dir, run.name, run.wandb_id)
         run.wandb_id = logger_run_id(run.logger)
         log.info("run %s in %s", run.name, run_dir)
         yield run
@@ -172,6 +170,13 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
         raise
     finally:
         close_logger(run.logger, exit_code)
+
+
+def _last_step(rows: list[dict[str, Any]]) -> int:
+    """The generation or iteration of the last row a checkpoint holds (0: none)."""
+    if not rows:
+        return 0
+    return int(rows[-1].get("generation", rows[-1].get("iteration", 0)))
 
 
 _critical = 0

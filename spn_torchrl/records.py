@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import logging
 import netrc
 import os
+import stat
 import tempfile
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -18,29 +21,74 @@ from spn_torchrl.config import RunConfig, config_dict
 from spn_torchrl.errors import RunFileError
 
 log = logging.getLogger("spn_torchrl")
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """This process's umask, read without changing it where Linux's /proc/self/status tells it."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    # os.umask reads only by setting: set it back at once (a file another thread creates between the two calls
+    # gets mode & ~0o022; the lock keeps this module's own writers apart)
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
 
 
 def write_atomic(path: Path, data: bytes | str) -> None:
-    """Write a file so that a reader (or a killed run) sees either the old or the new content; an OSError becomes
-    one sentence naming the path (:class:`RunFileError`)."""
+    """Write a file so that a reader (or a killed run) sees either the old or the new content, with the mode
+    ``open(path, "w")`` gives: an existing file's own, else 0o666 less the umask. A failure raises
+    :class:`~spn_torchrl.errors.RunFileError`."""
     path = Path(path)
-    tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        try:
+            mode = stat.S_IMODE(os.stat(path).st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~current_umask()
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")  # mode 0o600
+    except OSError as err:
+        raise run_file_error(path, err) from None
+    try:
         with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), mode)
             f.write(data.encode() if isinstance(data, str) else data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except OSError as err:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
-        raise RunFileError.of(err, path) from None
-    except BaseException:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
+    except BaseException as err:
+        Path(tmp).unlink(missing_ok=True)
+        if isinstance(err, OSError):
+            raise run_file_error(path, err) from None
         raise
+
+
+_WRITE_ERRORS = {
+    errno.ENOSPC: "no space left on device",
+    errno.EDQUOT: "the disk quota is exceeded",
+    errno.EROFS: "the file system is read-only",
+}
+
+
+def run_file_error(path: Path, err: OSError) -> RunFileError:
+    """One sentence for an error met writing a run's file ``path``: the path and what was expected there."""
+    path = Path(path)
+    if path.is_dir():
+        return RunFileError(f"{path} is a directory, expected a file")
+    for parent in reversed(path.parents):
+        if parent.exists() and not parent.is_dir():
+            return RunFileError(f"{parent} is a file, expected a directory (to hold {path})")
+    if err.errno in (errno.EACCES, errno.EPERM):
+        nearest = next((parent for parent in path.parents if parent.exists()), path.parent)
+        return RunFileError(f"cannot write {path}: the directory {nearest} is not writable ({err.strerror})")
+    reason = _WRITE_ERRORS.get(err.errno, err.strerror or type(err).__name__)
+    return RunFileError(f"cannot write {path}: {reason}")
 
 
 def save_torch_atomic(obj: Any, path: Path) -> None:
@@ -81,6 +129,46 @@ def _number(text: str) -> Any:
         except ValueError:
             pass
     return text
+
+
+def trim_csv_logs(run_dir: Path, last_step: int) -> int:
+    """Cut the CSV logger's scalar files (``run_dir/logs/*/scalars/**/*.csv``, lines ``step,value``) to what a
+    checkpoint holds: one row per step up to ``last_step`` (a repeated step keeps its last row), none for a
+    run without a checkpoint (``last_step=0``); rewritten atomically. Returns the number of rows dropped.
+
+    torchrl's CSVLogger only appends, and a run logs a row before the checkpoint that holds it is written, so
+    a run killed in between logs that row again when it resumes. Call this before the resumed run's logger
+    opens its files: a file the logger already holds open keeps receiving rows after it is replaced."""
+    dropped = 0
+    for path in sorted(Path(run_dir).glob("logs/*/scalars/**/*.csv")):
+        text = path.read_text()
+        lines = text.split("\n")
+        torn = lines.pop()  # "" where the file ends with a newline, else a torn last write: dropped
+        rows: dict[float, str] = {}
+        for line in lines:
+            step = _csv_step(line)
+            if step is not None and step <= last_step:
+                rows[step] = line
+        kept = "".join(line + "\n" for line in rows.values())
+        if kept == text:
+            continue
+        dropped += len(lines) + bool(torn) - len(rows)
+        if kept:
+            write_atomic(path, kept)
+        else:
+            path.unlink()
+    if dropped:
+        log.info("dropped %d rows of %s/logs that the checkpoint (step %d) does not hold", dropped, run_dir, last_step)
+    return dropped
+
+
+def _csv_step(line: str) -> float | None:
+    """The step of a CSVLogger line ``step,value``, None for a malformed one."""
+    step, comma, value = line.partition(",")
+    try:
+        return float(step) if comma and value else None
+    except ValueError:
+        return None
 
 
 def wandb_mode(requested: str) -> str:
@@ -128,7 +216,10 @@ def make_logger(cfg: RunConfig, run_dir: Path, run_name: str, run_id: str | None
     if backend == "csv":
         from torchrl.record.loggers import CSVLogger
 
-        return CSVLogger(exp_name=run_name, log_dir=str(run_dir / "logs"))
+        try:
+            return CSVLogger(exp_name=run_name, log_dir=str(run_dir / "logs"))
+        except OSError as err:
+            raise run_file_error(run_dir / "logs" / run_name / "scalars", err) from None
     from torchrl.record.loggers import WandbLogger
 
     mode = wandb_mode(cfg.logger.mode)

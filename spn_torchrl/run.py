@@ -12,9 +12,9 @@ from omegaconf import DictConfig
 
 from spn_torchrl.config import GAConfig, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
-from spn_torchrl.errors import RunFileError, RunInterrupted
+from spn_torchrl.errors import RunInterrupted
 from spn_torchrl.lifecycle import resume_hint, signals_interrupt
-from spn_torchrl.records import sweep_name
+from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.training.evolve import evolve
 from spn_torchrl.training.ppo import train_ppo
 
@@ -57,7 +57,7 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise RunFileError.of(err, out, "a run directory") from None
+        raise run_file_error(out, err) from None
     torch.set_num_threads(typed.torch_threads)
     train = evolve if isinstance(typed.algo, GAConfig) else train_ppo
     try:

@@ -1,3 +1,7 @@
+import os
+import signal
+import time
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -158,3 +162,37 @@ def test_a_worker_process_killed_is_a_clear_error():
             evaluator(genomes, 0)
     finally:
         evaluator.close()
+
+
+@pytest.mark.parametrize("request_size", ["small", "larger than its pipe"])
+def test_a_stopped_worker_process_is_a_clear_error_within_the_call_timeout(request_size):
+    spec, spn, genomes, _ = setup("CartPole-v1", 6, 1.0)
+    if request_size != "small":  # 1.5 MB of weight genomes: the stopped worker's pipe fills, the send blocks
+        spn = PopulationSPN(spn.w1, spn.w2, genome_kind="weights", discrete=True)
+        genomes = torch.zeros(2000, spn.genome_size)
+    with pytest.raises(ConfigError, match="evaluator.call_timeout_s must be > 0 or null, got 0"):
+        ProcessEvaluator(spn, "CartPole-v1", 6, "cartpole_batch", 1, 500, 2, call_timeout_s=0)
+    evaluator = ProcessEvaluator(
+        spn, "CartPole-v1", len(genomes), "cartpole_batch", 1, spec.max_episode_steps, 2, call_timeout_s=2.0
+    )
+    workers = list(evaluator._processes)
+    stop, pid = evaluator.bounds[1][1] - 1, workers[1].pid
+    try:
+        os.kill(pid, signal.SIGSTOP)
+        began = time.monotonic()
+        with pytest.raises(EvaluatorError) as raised:
+            evaluator(genomes, 0)
+        assert 2.0 <= time.monotonic() - began < 4.0
+        assert str(raised.value) == (
+            f"evaluator process 1 (slots {evaluator.bounds[1][0]}..{stop}, pid {pid}) did not evaluate within "
+            "evaluator.call_timeout_s=2 s: it is stopped (SIGSTOP?)"
+        )
+        began = time.monotonic()
+        evaluator.close()
+        assert time.monotonic() - began < 3.0
+        assert not any(p.is_alive() for p in workers) and workers[1].exitcode == -signal.SIGKILL
+    finally:
+        evaluator.close()
+        for process in workers:  # a failed assertion must not leave a stopped process behind
+            if process.is_alive():
+                process.kill()

@@ -138,7 +138,7 @@ def test_file_faults_are_one_sentence(tmp_path):
     (logs_file / "logs").write_text("not a directory")
     proc = run_train(logs_file, *BASE, "algo.generations=1", check=False)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
-    assert last_line(proc).startswith(f"error: cannot write {logs_file / 'logs'}")
+    assert last_line(proc).startswith(f"error: {logs_file / 'logs'} is a file, expected a directory")
 
     run_dir = tmp_path / "progress_dir"
     run_train(run_dir, *BASE, "algo.generations=1")
@@ -146,7 +146,7 @@ def test_file_faults_are_one_sentence(tmp_path):
     (run_dir / "progress.csv").mkdir()
     proc = run_train(run_dir, *BASE, "algo.generations=2", "resume=true", check=False)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
-    assert last_line(proc) == f"error: cannot write {run_dir / 'progress.csv'}: it is a directory, expected a file"
+    assert last_line(proc) == f"error: {run_dir / 'progress.csv'} is a directory, expected a file"
     shutil.rmtree(run_dir / "progress.csv")
 
 

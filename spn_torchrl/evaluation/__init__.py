@@ -15,7 +15,7 @@ from collections.abc import Callable
 from spn_torchrl.config import GAConfig, LocalEvaluatorConfig, RayEvaluatorConfig, RunConfig
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import require
-from spn_torchrl.evaluation.processes import ProcessEvaluator, spawn_blocked_by
+from spn_torchrl.evaluation.processes import CALL_TIMEOUT_S, ProcessEvaluator, spawn_blocked_by
 from spn_torchrl.evaluation.rollout import Evaluator, PopulationEvaluator
 from spn_torchrl.snn.policies import PopulationSPN
 
@@ -45,6 +45,7 @@ def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evalu
         spec.max_episode_steps,
         local_processes(evaluator, cfg.env.threads, slots),
         evaluator.start_timeout_s,
+        evaluator.call_timeout_s,
     )
 
 
@@ -57,13 +58,17 @@ def machine_evaluator(
     max_episode_steps: int,
     processes: int = 1,
     start_timeout_s: float = 300.0,
+    call_timeout_s: float | None = CALL_TIMEOUT_S,
 ) -> Evaluator:
     """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
-    > 1, one shard of them in each worker process (:mod:`spn_torchrl.evaluation.processes`)."""
+    > 1, one shard of them in each worker process (:mod:`spn_torchrl.evaluation.processes`), each call within
+    ``call_timeout_s`` (None: no limit)."""
     if processes > 1:
         blocker = spawn_blocked_by()
         if blocker is None:
-            return ProcessEvaluator(spn, env_id, slots, backend, threads, max_episode_steps, processes, start_timeout_s)
+            return ProcessEvaluator(
+                spn, env_id, slots, backend, threads, max_episode_steps, processes, start_timeout_s, call_timeout_s
+            )
         log.warning(
             "evaluator.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker
         )

@@ -10,18 +10,24 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import signal
+import threading
 import time
-from multiprocessing.connection import Connection
+from collections.abc import Iterable
+from multiprocessing.connection import Connection, wait
 from typing import Any
 
 import numpy as np
 import torch
 
-from spn_torchrl.errors import EvaluatorError, SpnError
+from spn_torchrl.config import LocalEvaluatorConfig
+from spn_torchrl.errors import ConfigError, EvaluatorError, SpnError
 from spn_torchrl.evaluation.rollout import Episodes
 from spn_torchrl.evaluation.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
 from spn_torchrl.snn.policies import PopulationSPN
+
+CALL_TIMEOUT_S = LocalEvaluatorConfig.call_timeout_s  # a genome set's evaluation past this is a stall
 
 
 def spawn_blocked_by() -> str | None:
@@ -54,7 +60,8 @@ def _serve(conn: Connection, spn: PopulationSPN, *worker_args: Any) -> None:
 
 class ProcessEvaluator:
     """The :class:`~spn_torchrl.evaluation.rollout.Evaluator` over ``processes`` worker processes, each holding a
-    contiguous shard of the ``capacity`` slots."""
+    contiguous shard of the ``capacity`` slots. A call that gets no answer from a worker within
+    ``call_timeout_s`` (None: no limit) raises :class:`~spn_torchrl.errors.EvaluatorError` naming it."""
 
     def __init__(
         self,
@@ -62,24 +69,29 @@ class ProcessEvaluator:
         env_id: str,
         capacity: int,
         backend: str,
-        num_workers: int,
+        threads: int,
         max_episode_steps: int,
         processes: int,
         start_timeout_s: float = 300.0,
+        call_timeout_s: float | None = CALL_TIMEOUT_S,
     ) -> None:
+        if call_timeout_s is not None and not call_timeout_s > 0:
+            raise ConfigError(f"evaluator.call_timeout_s must be > 0 or null, got {call_timeout_s}")
         self.spn = spn
         self.capacity = capacity
+        self.call_timeout_s = call_timeout_s
         self.bounds = shard_bounds(capacity, processes)
         bare = without_genomes(spn)
         context = multiprocessing.get_context("spawn")  # no fork of a process that runs threads
         self._pipes: list[Connection] = []
         self._processes: list[multiprocessing.process.BaseProcess] = []
+        self._sender: _Sender | None = None
         try:
             for index, (start, stop) in enumerate(self.bounds):
                 parent, child = context.Pipe()
                 process = context.Process(
                     target=_serve,
-                    args=(child, bare, env_id, stop - start, backend, num_workers, max_episode_steps),
+                    args=(child, bare, env_id, stop - start, backend, threads, max_episode_steps),
                     name=f"spn_torchrl-shard-{index}",
                     daemon=True,
                 )
@@ -87,52 +99,61 @@ class ProcessEvaluator:
                 child.close()
                 self._pipes.append(parent)
                 self._processes.append(process)
-            deadline = time.monotonic() + start_timeout_s
-            for index in range(processes):
-                self._receive(index, deadline, "start")
+            self._collect(range(processes), time.monotonic() + start_timeout_s, "start")
         except BaseException:
             self.close()
             raise
 
     def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
-        asked = []
-        for index, _, _, shard, shard_seeds in shard_requests(
-            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes"
-        ):
-            self._send(index, ("evaluate", (shard, shard_seeds)), "evaluate")
-            asked.append(index)
-        return merge([self._receive(index, None, "evaluate") for index in asked])
+        requests = shard_requests(self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes")
+        asked = [(index, ("evaluate", (shard, shard_seeds))) for index, _, _, shard, shard_seeds in requests]
+        return merge(self._ask(asked, "evaluate"))
 
     def gather(self, query: str) -> list:
         """Each worker's answer to a :class:`~spn_torchrl.evaluation.shards.ShardWorker` query (e.g. ``"peak_memory_mb"``)."""
-        for index in range(len(self._pipes)):
-            self._send(index, (query, ()), f"answer {query}")
-        return [self._receive(index, None, f"answer {query}") for index in range(len(self._pipes))]
+        return self._ask([(index, (query, ())) for index in range(len(self._pipes))], f"answer {query}")
 
-    def _send(self, index: int, message: tuple, what: str) -> None:
-        try:
-            self._pipes[index].send(message)
-        except OSError:  # a broken pipe: the worker is gone
-            raise self._died(index, what) from None
+    def _ask(self, requests: list[tuple[int, tuple]], what: str) -> list:
+        """The workers' answers to their requests, in request order, all within ``call_timeout_s``."""
+        deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
+        # sent from a thread: a request larger than the pipe's buffer blocks its send while the worker is stopped
+        self._sender = _Sender([(self._pipes[index], message) for index, message in requests])
+        return self._collect([index for index, _ in requests], deadline, what)
 
-    def _receive(self, index: int, deadline: float | None, what: str) -> Results | Any:
-        pipe, process = self._pipes[index], self._processes[index]
-        while not pipe.poll(0.5):  # in slices, so that a dead worker is noticed
-            if not process.is_alive():
-                raise self._died(index, what)
+    def _collect(self, indices: Iterable[int], deadline: float | None, what: str) -> list:
+        indices = list(indices)
+        answers: dict[int, Any] = {}
+        while len(answers) < len(indices):
+            waiting = [index for index in indices if index not in answers]
+            ready = wait([self._pipes[index] for index in waiting], timeout=0.5)  # in slices: deaths, deadline
+            for index in waiting:
+                if self._pipes[index] in ready:
+                    answers[index] = self._receive(index, what)
+            if ready:
+                continue
+            for index in waiting:
+                if not self._processes[index].is_alive():
+                    raise self._died(index, what)
+            if self._sender is not None and self._sender.error is not None:
+                raise self._sender.error
             if deadline is not None and time.monotonic() > deadline:
-                raise EvaluatorError(f"{self._where(index)} did not start within evaluator.start_timeout_s")
+                stopped_first = sorted(waiting, key=lambda index: not _stopped(self._processes[index].pid))
+                raise self._late(stopped_first[0], what)
+        return [answers[index] for index in indices]
+
+    def _receive(self, index: int, what: str) -> Results | Any:
         try:
-            status, value = pipe.recv()
+            status, value = self._pipes[index].recv()
         except (EOFError, OSError):  # closed or reset: the worker is gone
             raise self._died(index, what) from None
         if status == "error":
             raise value
         return value
 
-    def _where(self, index: int) -> str:
+    def _where(self, index: int, pid: bool = False) -> str:
         start, stop = self.bounds[index]
-        return f"evaluator process {index} (slots {start}..{stop - 1})"
+        pid_part = f", pid {self._processes[index].pid}" if pid else ""
+        return f"evaluator process {index} (slots {start}..{stop - 1}{pid_part})"
 
     def _died(self, index: int, what: str) -> EvaluatorError:
         self._processes[index].join(timeout=1)
@@ -140,17 +161,60 @@ class ProcessEvaluator:
             f"{self._where(index)} died (exit code {self._processes[index].exitcode}) before it could {what}"
         )
 
+    def _late(self, index: int, what: str) -> EvaluatorError:
+        if what == "start":
+            return EvaluatorError(f"{self._where(index)} did not start within evaluator.start_timeout_s")
+        state = "is stopped (SIGSTOP?)" if _stopped(self._processes[index].pid) else "is stalled or needs longer"
+        return EvaluatorError(
+            f"{self._where(index, pid=True)} did not {what} within evaluator.call_timeout_s={self.call_timeout_s:g} s: "
+            f"it {state}"
+        )
+
     def close(self) -> None:
-        for pipe in self._pipes:
-            try:
-                pipe.send(None)
-            except OSError:
-                pass
+        """End every worker: those that do not exit when asked within a few seconds (busy, stopped) are killed."""
+        in_flight = self._sender is not None and self._sender.is_alive()
+        if not in_flight:  # else a request is half-sent: no clean message can follow it
+            for pipe in self._pipes:
+                with contextlib.suppress(OSError):
+                    os.set_blocking(pipe.fileno(), False)  # a full pipe must not block close
+                    pipe.send(None)
+        deadline = time.monotonic() + (0 if in_flight else 5)
         for process in self._processes:
-            process.join(timeout=10)
+            if not _stopped(process.pid):
+                process.join(timeout=max(0.0, deadline - time.monotonic()))
             if process.is_alive():
-                process.kill()
+                process.kill()  # SIGKILL ends a stopped process too
                 process.join()
+        if self._sender is not None:
+            self._sender.join(timeout=5)  # its workers are gone: a blocked send fails at once
         for pipe in self._pipes:
             pipe.close()
-        self._pipes, self._processes = [], []
+        self._pipes, self._processes, self._sender = [], [], None
+
+
+class _Sender(threading.Thread):
+    """Sends requests to workers in order; stops at the first worker that is gone (the receiver reports it)."""
+
+    def __init__(self, messages: list[tuple[Connection, tuple]]) -> None:
+        super().__init__(name="spn_torchrl-evaluator-sender", daemon=True)
+        self.messages = messages
+        self.error: BaseException | None = None
+        self.start()
+
+    def run(self) -> None:
+        try:
+            for pipe, message in self.messages:
+                pipe.send(message)
+        except OSError:  # a broken pipe: the worker is gone
+            pass
+        except BaseException as err:  # e.g. a payload that cannot be pickled: raised by the caller
+            self.error = err
+
+
+def _stopped(pid: int | None) -> bool:
+    """Whether a process is stopped (by SIGSTOP or a debugger); False where /proc cannot tell."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] in ("T", "t")
+    except (OSError, IndexError):
+        return False
