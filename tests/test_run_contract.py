@@ -157,6 +157,16 @@ def test_the_run_contract_is_written_into_every_checkpoint(tmp_path):
     assert [r["generation"] for r in state["rows"]] == [1]
 
 
+def test_run_files_get_the_umasks_mode(tmp_path):
+    umask = os.umask(0o027)
+    try:
+        run_train(tmp_path, *BASE, "algo.generations=1")
+    finally:
+        os.umask(umask)
+    for name in ("progress.csv", "checkpoint.pt"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o640, name
+
+
 def wandb_exit_codes(run_dir: Path) -> list[int]:
     """The exit codes an offline W&B run file records (its records are framed as a LevelDB log)."""
     from wandb.proto import wandb_internal_pb2

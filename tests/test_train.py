@@ -75,6 +75,9 @@ def test_killed_run_resumes_to_the_same_result(tmp_path):
     assert len(a) == len(b) == 10
     for ra, rb in zip(a, b):
         assert {k: v for k, v in ra.items() if k not in TIMING} == {k: v for k, v in rb.items() if k not in TIMING}
+    for scalars in killed.glob("logs/*/scalars/**/*.csv"):  # the CSV logger: each generation once
+        steps = [line.split(",")[0] for line in scalars.read_text().splitlines()]
+        assert len(steps) == len(set(steps)) == 10, scalars
     sa, sb = checkpoint.load(full), checkpoint.load(killed)
     for key in ("population", "elites", "w1", "w2", "rng"):
         assert torch.equal(sa[key], sb[key]), key
