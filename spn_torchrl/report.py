@@ -1,4 +1,5 @@
-"""``python -m spn_torchrl.report``: the command-line face of :mod:`spn_torchrl.analysis.report`."""
+"""``python -m spn_torchrl.report``: the command-line face of :mod:`spn_torchrl.analysis.report` and, with
+``--reproduction``, of :mod:`spn_torchrl.analysis.reproduction`."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from spn_torchrl.analysis.report import build_report, log_to_wandb
+from spn_torchrl.analysis.reproduction import build_reproduction
 from spn_torchrl.errors import SpnError
 
 
@@ -21,6 +23,11 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("paths", nargs="+", help="run or multirun directories (searched recursively)")
     parser.add_argument("--ppo-level", type=float, default=None, help="PPO level R (default: from dpn_ppo runs found)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default: ./report)")
+    parser.add_argument(
+        "--reproduction",
+        action="store_true",
+        help="write README.md: the runs (finished ones only) against the paper's published figures, claim by claim",
+    )
     parser.add_argument(
         "--wandb",
         action="store_true",
@@ -37,9 +44,12 @@ def main(argv: Sequence[str] | None = None) -> None:
     np.seterr(all="ignore")
     out = args.out or Path("report")
     try:
-        result = build_report(args.paths, out, args.ppo_level)
-        if args.wandb or result["wandb_projects"]:
-            log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
+        if args.reproduction:
+            result = build_reproduction(args.paths, out, args.ppo_level)
+        else:
+            result = build_report(args.paths, out, args.ppo_level)
+            if args.wandb or result["wandb_projects"]:
+                log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
     except SpnError as err:
         sys.exit(f"error: {err}")
     print(f"wrote {result['markdown']} ({len(result['tasks'])} task(s))")
