@@ -69,7 +69,7 @@ def test_with_no_finished_run_the_curve_covers_the_generations_all_reached(tmp_p
     assert method["final_return_mean"] == pytest.approx(30.5)
     assert [e["progress"] for e in method["unfinished_pooled"]] == ["3 of 30 generations", "5 of 30 generations"]
     md = (tmp_path / "out" / "report.md").read_text()
-    assert "**conn_ga: no run reached its budget**" in md and "over the 3 generations/iterations all of them" in md
+    assert "**conn_ga: no run reached its budget**" in md and "over the 3 generations all of them" in md
 
 
 def test_cli_names_the_runs_that_stopped_early(tmp_path):

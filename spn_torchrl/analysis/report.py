@@ -266,7 +266,7 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
         if m["unfinished_pooled"]:
             out.append(
                 f"- **{algo}: no run reached its budget**; its curve and numbers pool every run over the "
-                f"{m['rows']} generations/iterations all of them reached: {_progress_list(m['unfinished_pooled'])}."
+                f"{m['rows']} {'generations' if m['kind'] == 'ga' else 'iterations'} all of them reached: {_progress_list(m['unfinished_pooled'])}."
             )
         elif len(m["rows_per_run"]) > 1:
             out.append(f"- {algo}: runs of different lengths {m['rows_per_run']}; the curve is cut at {m['rows']}.")

@@ -346,8 +346,9 @@ def build_reproduction(
     lines += [
         "# Results against the paper",
         "",
-        f"Written by `{COMMAND}` from {len(finished)} finished run(s) "
-        f"({len(runs) - len(finished)} more did not reach their budget); "
+        f"Written by `{COMMAND}` from {len(finished)} finished run(s)"
+        + (f" ({len(runs) - len(finished)} more did not reach their budget)" if len(runs) > len(finished) else "")
+        + "; "
         f"commits: {', '.join(f'`{c[:12]}`' for c in commits) or 'not recorded'}. Do not edit by hand.",
         "",
         "Ours: return of the generation's elite (mean of its evaluation episodes) at the last generation, mean +- "
