@@ -129,3 +129,21 @@ def test_the_typed_in_paper_figures_agree_with_each_other_and_the_energy_model()
         e_ppo = energy.e_optim_ppo(n, m, paper.TABLE4_PPO_FORWARD, paper.TABLE4_PPO_BACKWARD)
         assert e_ppo == pytest.approx(paper.TABLE3[env].dpn, rel=5e-3)
         assert paper.TABLE3[env].dpn / paper.TABLE3[env].spn == pytest.approx(paper.TABLE3[env].ratio, abs=0.05)
+
+
+def test_finished_dpn_ppo_runs_set_r_instead_of_the_papers(tmp_path):
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        write_run(runs, "swimmer", "Swimmer-v5", "conn_ga", seed, curve(150.0 + seed, 10))
+        write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", seed, [50.0, 90.0 + seed], kind="ppo", total_env_steps=2000)
+    write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", 2, [5.0], kind="ppo", total_env_steps=2000)  # stopped
+    result = build_reproduction([runs], tmp_path / "out")
+    task = result["tasks"]["swimmer"]
+    assert task["ppo_level"] == pytest.approx(90.5) and task["ppo_level_source"].startswith("dpn_ppo runs")
+    assert task["methods"]["dpn_ppo"]["seeds"] == [0, 1]
+    rows = {r["algo"]: r for r in result["comparisons"]["swimmer"]}
+    assert rows["dpn_ppo"]["verdict"] == "not tested: the paper gives R without a std"
+    reach = claim(result, "Connections-GA reaches the PPO level R on Swimmer")
+    assert reach["status"] == "confirmed" and "R = 90.5 (dpn_ppo runs" in reach["ours"]
+    md = Path(result["markdown"]).read_text()
+    assert "R = 107.52 (mean only)" in md and "swimmer dpn_ppo seed 2: 1000 of 2000 env steps" in md

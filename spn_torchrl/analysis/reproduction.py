@@ -16,7 +16,7 @@ from typing import Any
 
 from spn_torchrl.analysis import paper
 from spn_torchrl.analysis.energy import first_generation_at, sig
-from spn_torchrl.analysis.report import left_out_entry, stopped_lines, summarize, task_markdown
+from spn_torchrl.analysis.report import PPO_LEVEL_ALGO, left_out_entry, stopped_lines, summarize, task_markdown
 from spn_torchrl.analysis.runs import RunRecord
 from spn_torchrl.analysis.stats import ALPHA, p_text, sample_sd, verdict, welch
 
@@ -51,8 +51,8 @@ def _value(x: float, scale: float | None = None) -> str:
     return f"{x:.0f}" if abs(x if scale is None else scale) >= 1000 else f"{x:.1f}"
 
 
-def _pm(mean: float, std: float) -> str:
-    return f"{_value(mean)} +- {_value(std, mean)}"
+def _pm(mean: float, std: float | None) -> str:
+    return f"R = {mean:g} (mean only)" if std is None else f"{_value(mean)} +- {_value(std, mean)}"
 
 
 def against_paper(env: str, algo: str, m: dict[str, Any]) -> dict[str, Any]:
@@ -70,6 +70,10 @@ def against_paper(env: str, algo: str, m: dict[str, Any]) -> dict[str, Any]:
         "shortened": _shortened(m),
         "paper": None if published is None else {"mean": published.mean, "std": published.std, "n": published.n},
     }
+    if published is None and algo == PPO_LEVEL_ALGO and env in paper.PPO_LEVEL:
+        row["paper"] = {"mean": paper.PPO_LEVEL[env], "std": None, "n": paper.SEEDS}
+        row["verdict"] = "not tested: the paper gives R without a std"
+        return row
     if published is None:
         row["verdict"] = "no published figure"
         return row
@@ -295,13 +299,13 @@ def comparison_markdown(env: str, s: dict[str, Any], figure: str | None) -> tupl
                 row["verdict"],
             ]
         )
-    if env in paper.PPO_LEVEL and "dpn_ppo" not in s["methods"]:
+    if env in paper.PPO_LEVEL and PPO_LEVEL_ALGO not in s["methods"]:
         rows.append(["DPN-PPO", 0, "-", "not yet run", "-", f"R = {paper.PPO_LEVEL[env]:g} (mean only)", "-"])
     out += _table(
         [
             "method",
             "seeds",
-            "generation",
+            "generation / iteration",
             "ours: mean +- std",
             "ours: min - max",
             "paper: mean +- std (gen. 100, 10 seeds)",
