@@ -411,11 +411,13 @@ def summarize(
     level: float | None = None,
     strict: bool = False,
     fallback_levels: dict[str, tuple[float, str]] | None = None,
+    published: dict[str, dict[str, tuple[int, float, float]]] | None = None,
 ) -> tuple[list[RunRecord], dict[str, Any], dict[str, str]]:
     """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only), draw one
     figure per task into ``out``; ``(runs, {env: summary}, {env: figure path})``.
 
     R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source).
+    ``published[env][algo]`` = (generation, mean, std) is drawn on the figure as a marker.
     """
     runs = find_runs(paths)
     if not runs:
@@ -435,7 +437,9 @@ def summarize(
         summaries[env] = summary
         if pools:
             reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
-            figures[env] = str(task_figure(summary["env_id"], pools, summary["ppo_level"], out / f"{env}.png", reached))
+            marks = (published or {}).get(env)
+            figure = task_figure(summary["env_id"], pools, summary["ppo_level"], out / f"{env}.png", reached, marks)
+            figures[env] = str(figure)
     return runs, summaries, figures
 
 

@@ -30,6 +30,14 @@ def paper_levels() -> dict[str, tuple[float, str]]:
     return {env: (level, PAPER_R_SOURCE) for env, level in paper.PPO_LEVEL.items()}
 
 
+def published_markers() -> dict[str, dict[str, tuple[int, float, float]]]:
+    """The paper's generation-100 mean and std of each task and GA method, for the figures."""
+    out: dict[str, dict[str, tuple[int, float, float]]] = {}
+    for (env, algo), final in paper.FINAL.items():
+        out.setdefault(env, {})[algo] = (paper.GENERATIONS, final.mean, final.std)
+    return out
+
+
 def _title(env: str) -> str:
     return paper.TASK_TITLES.get(env, env)
 
@@ -342,7 +350,9 @@ def build_reproduction(
     """Write ``out/README.md`` (after ``preface``, default ``out/PREFACE.md``), figures and report.json from the
     finished runs under ``paths``; return the numbers, the claims and the runs left out."""
     out = Path(out)
-    runs, tasks, figures = summarize(paths, out, level, strict=True, fallback_levels=paper_levels())
+    runs, tasks, figures = summarize(
+        paths, out, level, strict=True, fallback_levels=paper_levels(), published=published_markers()
+    )
     preface = out / "PREFACE.md" if preface is None else Path(preface)
     lines = [preface.read_text().rstrip(), ""] if preface.is_file() else []
     finished = [run for run in runs if run.finished]
@@ -384,7 +394,7 @@ def build_reproduction(
         figure = Path(figures[env]).name if env in figures else None
         section, comparisons[env] = comparison_markdown(env, summary, figure)
         lines += section
-    lines += ["# Details per task (the report's own tables: data efficiency, energy)", ""]
+    lines += ["## Details per task (the report's own tables: data efficiency, energy)", ""]
     for summary in tasks.values():
         lines += ["#" + line if line.startswith("#") else line for line in task_markdown(summary, None)]
     (out / "README.md").write_text("\n".join(lines).rstrip() + "\n")
