@@ -82,6 +82,10 @@ def test_the_claims_table(result):
     g = int(np.argmax(np.mean([curve(c) for c in CONN_FINAL], axis=0) >= paper.PPO_LEVEL["halfcheetah"])) + 1
     assert reach["status"] == "confirmed" and f"reached at generation {g}" in reach["ours"]
     assert "(paper's R)" in reach["ours"]
+    assert "[3 seed(s) of the paper's 10]" in reach["ours"]
+    assert (
+        "[3 / 3 seed(s) of the paper's 10]" in claim(result, "Connections-GA beats Weights-GA on HalfCheetah")["ours"]
+    )
     assert result["tasks"]["halfcheetah"]["ppo_level_source"] == PAPER_R_SOURCE
     assert claim(result, "Connections-GA beats Weights-GA on HalfCheetah")["status"] == "confirmed"
     assert claim(result, "Weights-GA does not reach the PPO level R on HalfCheetah")["status"] == "confirmed"

@@ -28,11 +28,13 @@ def task_figure(
     path: Path,
     reached: dict[str, int | None] | None = None,
     published: dict[str, tuple[int, float, float]] | None = None,
+    level_note: str = "",
 ) -> Path:
     """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task.
 
     ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line);
     ``published`` maps a GA method to a published (generation, mean, std): a marker with a half-std bar.
+    ``level_note`` follows the PPO level in the legend (e.g. "paper's R").
     """
     fig, (by_gen, by_steps) = plt.subplots(1, 2, figsize=(11, 4))
     for algo, runs in sorted(algos.items()):
@@ -60,7 +62,13 @@ def task_figure(
             )
     for ax in (by_gen, by_steps):
         if ppo_level is not None:
-            ax.axhline(ppo_level, color="red", linestyle="--", linewidth=1, label=f"PPO level {ppo_level:.4g}")
+            ax.axhline(
+                ppo_level,
+                color="red",
+                linestyle="--",
+                linewidth=1,
+                label=f"PPO level {ppo_level:.6g}{f' ({level_note})' if level_note else ''}",
+            )
         ax.set_ylabel("return (elite, mean of eval episodes)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)

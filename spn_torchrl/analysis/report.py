@@ -416,7 +416,8 @@ def summarize(
     """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only), draw one
     figure per task into ``out``; ``(runs, {env: summary}, {env: figure path})``.
 
-    R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source).
+    R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source; the
+    source's words before " (" label the figure's line).
     ``published[env][algo]`` = (generation, mean, std) is drawn on the figure as a marker.
     """
     runs = find_runs(paths)
@@ -430,15 +431,18 @@ def summarize(
     figures: dict[str, str] = {}
     for env, algos in group_runs(runs).items():
         pools, left = choose_pools(algos, strict)
-        task_level, source = level, "--ppo-level"
+        task_level, source, note = level, "--ppo-level", ""
         if task_level is None and PPO_LEVEL_ALGO not in pools and env in (fallback_levels or {}):
             task_level, source = fallback_levels[env]
+            note = source.split(" (")[0]
         summary = task_summary(env, pools, task_level, source, left)
         summaries[env] = summary
         if pools:
             reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
             marks = (published or {}).get(env)
-            figure = task_figure(summary["env_id"], pools, summary["ppo_level"], out / f"{env}.png", reached, marks)
+            figure = task_figure(
+                summary["env_id"], pools, summary["ppo_level"], out / f"{env}.png", reached, marks, note
+            )
             figures[env] = str(figure)
     return runs, summaries, figures
 
