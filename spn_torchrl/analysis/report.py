@@ -46,6 +46,15 @@ def _nan_to_none(value: float) -> float | None:
     return None if value is None or math.isnan(value) else float(value)
 
 
+def shown_path(path: Path) -> str:
+    """A run's path as the report prints it: relative to the working directory when under it (so that a report
+    written from committed evidence does not depend on where the repository lies), else absolute."""
+    try:
+        return str(path.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def left_out_entry(run: RunRecord) -> dict[str, Any]:
     """A run left out of a pooled curve: seed, how far it got of its budget, where it is."""
     return {
@@ -53,7 +62,7 @@ def left_out_entry(run: RunRecord) -> dict[str, Any]:
         "progress": run.progress_text,
         "done": run.done,
         "budget": run.budget,
-        "path": str(run.path),
+        "path": shown_path(run.path),
     }
 
 
@@ -81,7 +90,7 @@ def method_summary(runs: Sequence[RunRecord], left_out: Sequence[RunRecord] = ()
         "final_return_min": float(final.min()),
         "final_return_max": float(final.max()),
         "return_mean_curve": [float(v) for v in pooled(runs, "eval_return").mean(axis=0)],
-        "runs": [str(run.path) for run in runs],
+        "runs": [shown_path(run.path) for run in runs],
     }
 
 
@@ -453,7 +462,7 @@ def stopped_lines(runs: Sequence[RunRecord]) -> list[str]:
     if not stopped:
         return []
     lines = [f"Runs that did not reach their budget ({len(stopped)}), never pooled with finished runs:", ""]
-    lines += [f"- {r.env} {r.algo} seed {r.seed}: {r.progress_text} ({r.path})" for r in stopped]
+    lines += [f"- {r.env} {r.algo} seed {r.seed}: {r.progress_text} ({shown_path(r.path)})" for r in stopped]
     return lines + [""]
 
 
