@@ -1,6 +1,63 @@
-"""``python -m spn_torchrl.report``: the command-line face of :mod:`spn_torchrl.analysis.report`."""
+"""``python -m spn_torchrl.report``: the command-line face of :mod:`spn_torchrl.analysis.report` and, with
+``--reproduction``, of :mod:`spn_torchrl.analysis.reproduction`."""
 
-from spn_torchrl.analysis.report import main
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from spn_torchrl.analysis.report import build_report, log_to_wandb
+from spn_torchrl.analysis.reproduction import build_reproduction
+from spn_torchrl.errors import SpnError
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="python -m spn_torchrl.report",
+        description="One report over run / multirun directories: curves over seeds, data efficiency, energy.",
+    )
+    parser.add_argument("paths", nargs="+", help="run or multirun directories (searched recursively)")
+    parser.add_argument("--ppo-level", type=float, default=None, help="PPO level R (default: from dpn_ppo runs found)")
+    parser.add_argument("--out", type=Path, default=None, help="output directory (default: ./report)")
+    parser.add_argument(
+        "--reproduction",
+        action="store_true",
+        help="write README.md: the runs (finished ones only) against the paper's published figures, claim by claim",
+    )
+    parser.add_argument(
+        "--wandb",
+        action="store_true",
+        help="also log figures and tables to W&B (automatic when every run used logger=wandb)",
+    )
+    parser.add_argument(
+        "--wandb-project", default=None, help="W&B project (default: the runs' logger.project, else spn_torchrl)"
+    )
+    return parser.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parse_args(argv)
+    np.seterr(all="ignore")
+    out = args.out or Path("report")
+    try:
+        if args.reproduction:
+            result = build_reproduction(args.paths, out, args.ppo_level)
+        else:
+            result = build_report(args.paths, out, args.ppo_level)
+            if args.wandb or result["wandb_projects"]:
+                log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
+    except SpnError as err:
+        sys.exit(f"error: {err}")
+    print(f"wrote {result['markdown']} ({len(result['tasks'])} task(s))")
+    for run in result["stopped"]:
+        print(
+            f"stopped before its budget (listed apart in the report): {run['env']} {run['algo']} seed {run['seed']}: {run['progress']}"
+        )
+
 
 if __name__ == "__main__":
     main()

@@ -27,10 +27,14 @@ def task_figure(
     ppo_level: float | None,
     path: Path,
     reached: dict[str, int | None] | None = None,
+    published: dict[str, tuple[int, float, float]] | None = None,
+    level_note: str = "",
 ) -> Path:
     """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task.
 
-    ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line).
+    ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line);
+    ``published`` maps a GA method to a published (generation, mean, std): a marker with a half-std bar.
+    ``level_note`` follows the PPO level in the legend (e.g. "paper's R").
     """
     fig, (by_gen, by_steps) = plt.subplots(1, 2, figsize=(11, 4))
     for algo, runs in sorted(algos.items()):
@@ -45,9 +49,26 @@ def task_figure(
                 )
                 by_steps.axvline(steps[generation - 1], color=color, linestyle=":", linewidth=1)
         _band(by_steps, steps, runs, algo, color)
+        if runs[0].kind == "ga" and algo in (published or {}):
+            generation, mean, std = published[algo]
+            by_gen.errorbar(
+                generation,
+                mean,
+                yerr=std / 2,
+                fmt="D",
+                color=color,
+                capsize=3,
+                label=f"{algo}: paper, gen {generation}",
+            )
     for ax in (by_gen, by_steps):
         if ppo_level is not None:
-            ax.axhline(ppo_level, color="red", linestyle="--", linewidth=1, label=f"PPO level {ppo_level:.4g}")
+            ax.axhline(
+                ppo_level,
+                color="red",
+                linestyle="--",
+                linewidth=1,
+                label=f"PPO level {ppo_level:.6g}{f' ({level_note})' if level_note else ''}",
+            )
         ax.set_ylabel("return (elite, mean of eval episodes)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)

@@ -2,11 +2,13 @@
 
 ``python -m spn_torchrl.report PATH... [--ppo-level R] [--out DIR] [--wandb]`` writes ``report.md``,
 ``report.json`` (the same numbers, for tools) and one PNG per task into ``--out``.
+
+Runs that did not reach their budget are listed apart, never pooled with finished ones; a method none of whose
+runs finished is pooled over the generations every run reached, and says so.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -14,44 +16,90 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from spn_torchrl.analysis import energy
 from spn_torchrl.analysis.energy import sig
 from spn_torchrl.analysis.figures import task_figure
-from spn_torchrl.analysis.runs import RunRecord, find_runs, group_runs, last_value, pooled
+from spn_torchrl.analysis.runs import (
+    RunRecord,
+    common_length,
+    find_runs,
+    group_runs,
+    last_value,
+    pool_choice,
+    pooled,
+    split_finished,
+)
 from spn_torchrl.envs import task_spec
+from spn_torchrl.errors import SpnError
 
 PPO_LEVEL_ALGO = "dpn_ppo"
-PAPER_BUDGET = {"generations": 100, "population": 200, "elite_candidates": 10, "elite_episodes": 10}
+PAPER_BUDGET = {
+    "generations": 100,
+    "population": 200,
+    "elite_candidates": 10,
+    "elite_episodes": 10,
+    "total_env_steps": 1_000_000,
+}
 
 
 def _nan_to_none(value: float) -> float | None:
     return None if value is None or math.isnan(value) else float(value)
 
 
-def method_summary(runs: Sequence[RunRecord]) -> dict[str, Any]:
-    """Seeds, length, env steps and final return (mean and std over seeds) of one method on one task."""
-    final = pooled(runs, "eval_return")[:, -1]
-    algo = runs[0].config.algo
+def shown_path(path: Path) -> str:
+    """A run's path as the report prints it: relative to the working directory when under it (so that a report
+    written from committed evidence does not depend on where the repository lies), else absolute."""
+    try:
+        return str(path.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+def left_out_entry(run: RunRecord) -> dict[str, Any]:
+    """A run left out of a pooled curve: seed, how far it got of its budget, where it is."""
     return {
-        "kind": runs[0].kind,
-        "budget": {
-            k: algo[k] for k in ("generations", "population", "elite_candidates", "elite_episodes") if k in algo
-        },
-        "seeds": sorted(run.seed for run in runs),
-        "rows": min(len(run.rows) for run in runs),
-        "total_env_steps": last_value(runs, "total_env_steps"),
-        "final_return_mean": float(final.mean()),
-        "final_return_std": float(final.std()),
-        "runs": [str(run.path) for run in runs],
+        "seed": run.seed,
+        "progress": run.progress_text,
+        "done": run.done,
+        "budget": run.budget,
+        "path": shown_path(run.path),
     }
 
 
-def ppo_level(algos: dict[str, list[RunRecord]], override: float | None) -> tuple[float | None, str]:
-    """The PPO level R: ``--ppo-level`` if given, else the DPN-PPO runs' final return (mean over seeds)."""
+def method_summary(runs: Sequence[RunRecord], left_out: Sequence[RunRecord] = ()) -> dict[str, Any]:
+    """Seeds, length, env steps and final return (mean, std and range over seeds) of one method on one task.
+
+    ``runs`` are the pooled runs (cut to the rows they all reached), ``left_out`` the runs listed apart.
+    """
+    final = pooled(runs, "eval_return")[:, -1]
+    algo = runs[0].config.algo
+    keys = ("generations", "population", "elite_candidates", "elite_episodes", "total_env_steps")
+    return {
+        "kind": runs[0].kind,
+        "budget": {k: algo[k] for k in keys if k in algo and (k == "total_env_steps") == (runs[0].kind == "ppo")},
+        "seeds": sorted(run.seed for run in runs),
+        "rows": common_length(runs),
+        "rows_per_run": sorted({len(run.rows) for run in runs}),
+        "finished": all(run.finished for run in runs),
+        "unfinished_pooled": [left_out_entry(run) for run in runs if not run.finished],
+        "left_out": [left_out_entry(run) for run in left_out],
+        "total_env_steps": last_value(runs, "total_env_steps"),
+        "final_return_mean": float(final.mean()),
+        "final_return_std": float(final.std()),
+        "final_return_sd": float(final.std(ddof=1)) if len(final) > 1 else None,
+        "final_return_min": float(final.min()),
+        "final_return_max": float(final.max()),
+        "return_mean_curve": [float(v) for v in pooled(runs, "eval_return").mean(axis=0)],
+        "runs": [shown_path(run.path) for run in runs],
+    }
+
+
+def ppo_level(
+    algos: dict[str, list[RunRecord]], override: float | None, source: str = "--ppo-level"
+) -> tuple[float | None, str]:
+    """The PPO level R: ``override`` if given (from ``source``), else the DPN-PPO runs' final return (mean over seeds)."""
     if override is not None:
-        return override, "--ppo-level"
+        return override, source
     runs = algos.get(PPO_LEVEL_ALGO)
     if runs:
         return float(
@@ -77,8 +125,7 @@ def data_efficiency(runs: Sequence[RunRecord], level: float, ppo_steps: float) -
 
 def inference_energy(runs: Sequence[RunRecord], n: int, m: int) -> dict[str, Any]:
     """E_SPN of the final elites (mean over seeds), dense and mask-aware, beside E_DPN (pJ per env step)."""
-    cfg = runs[0].config.algo
-    hidden, time_steps = int(cfg.get("hidden", energy.HIDDEN)), int(cfg.get("time_steps", 4))
+    hidden, time_steps = int(runs[0].snn("hidden", energy.HIDDEN)), int(runs[0].snn("time_steps", 4))
     rate = last_value(runs, "spike_rate")
     syn1, syn2 = last_value(runs, "synapses_l1"), last_value(runs, "synapses_l2")
     e_dpn = energy.e_dpn(n, m, hidden)
@@ -142,12 +189,35 @@ def optim_energy(
     }
 
 
-def task_summary(env: str, algos: dict[str, list[RunRecord]], level_override: float | None) -> dict[str, Any]:
-    """Every number the report shows for one task."""
-    any_run = next(iter(algos.values()))[0]
+def choose_pools(
+    algos: dict[str, list[RunRecord]], strict: bool = False
+) -> tuple[dict[str, list[RunRecord]], dict[str, list[RunRecord]]]:
+    """``({algo: runs to pool}, {algo: runs left out})``: the finished runs are pooled; where none of a method's runs
+    finished, ``strict`` leaves the method out altogether, else every run of it is pooled (and marked so)."""
+    pools: dict[str, list[RunRecord]] = {}
+    left: dict[str, list[RunRecord]] = {}
+    for algo, runs in sorted(algos.items()):
+        chosen, rest = split_finished(runs) if strict else pool_choice(runs)
+        if chosen:
+            pools[algo] = chosen
+        if rest:
+            left[algo] = rest
+    return pools, left
+
+
+def task_summary(
+    env: str,
+    algos: dict[str, list[RunRecord]],
+    level_override: float | None,
+    level_source: str = "--ppo-level",
+    left_out: dict[str, list[RunRecord]] | None = None,
+) -> dict[str, Any]:
+    """Every number the report shows for one task, from the pooled runs ``algos`` (``left_out``: listed apart)."""
+    left_out = left_out or {}
+    any_run = next(iter([*algos.values(), *left_out.values()]))[0]
     spec = task_spec(any_run.env_id)
     n, m = spec.n_obs, spec.n_act
-    level, level_source = ppo_level(algos, level_override)
+    level, level_source = ppo_level(algos, level_override, level_source)
     ppo = ppo_energy(algos, n, m)
     summary: dict[str, Any] = {
         "env": env,
@@ -157,7 +227,10 @@ def task_summary(env: str, algos: dict[str, list[RunRecord]], level_override: fl
         "ppo_level": level,
         "ppo_level_source": level_source,
         "ppo": ppo,
-        "methods": {algo: method_summary(runs) for algo, runs in sorted(algos.items())},
+        "methods": {algo: method_summary(runs, left_out.get(algo, ())) for algo, runs in sorted(algos.items())},
+        "left_out": {
+            algo: [left_out_entry(run) for run in runs] for algo, runs in sorted(left_out.items()) if algo not in algos
+        },
         "data_efficiency": {},
         "inference": {},
         "optim": {},
@@ -191,9 +264,38 @@ def _ratio(value: float | None) -> str:
     return "-" if value is None else f"**{value:.1f}**"
 
 
-def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
+def _progress_list(entries: Sequence[dict[str, Any]]) -> str:
+    return "; ".join(f"seed {e['seed']} ({e['progress']})" for e in entries)
+
+
+def pooling_notes(s: dict[str, Any]) -> list[str]:
+    """What each method's curve pools and what it leaves out: runs that stopped early, rows cut."""
+    out = []
+    for algo, m in s["methods"].items():
+        if m["unfinished_pooled"]:
+            out.append(
+                f"- **{algo}: no run reached its budget**; its curve and numbers pool every run over the "
+                f"{m['rows']} {'generations' if m['kind'] == 'ga' else 'iterations'} all of them reached: {_progress_list(m['unfinished_pooled'])}."
+            )
+        elif len(m["rows_per_run"]) > 1:
+            out.append(f"- {algo}: runs of different lengths {m['rows_per_run']}; the curve is cut at {m['rows']}.")
+        if m["left_out"]:
+            out.append(
+                f"- {algo}: left out (stopped before their budget): {_progress_list(m['left_out'])}; "
+                f"pooled: seeds {m['seeds']}."
+            )
+    for algo, entries in s.get("left_out", {}).items():
+        out.append(f"- {algo}: no run reached its budget, none pooled: {_progress_list(entries)}.")
+    return out + [""] if out else []
+
+
+def task_markdown(s: dict[str, Any], figure: str | None) -> list[str]:
     """The report section of one task: curves, final returns, Tables 1-4 of the paper."""
-    out = [f"## {s['env_id']} (n={s['n']}, m={s['m']})", "", f"![learning curves]({figure})", ""]
+    out = [f"## {s['env_id']} (n={s['n']}, m={s['m']})", ""]
+    out += [f"![learning curves]({figure})", ""] if s["methods"] and figure else []
+    out += pooling_notes(s)
+    if not s["methods"]:
+        return out
     level = s["ppo_level"]
     out.append(f"PPO level R: {'none' if level is None else f'{level:.2f}'} ({s['ppo_level_source']}).")
     if not any(m["kind"] == "ppo" for m in s["methods"].values()):
@@ -217,9 +319,9 @@ def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
             "kind",
             "budget",
             "seeds",
-            "generations / iterations done",
+            "generations / iterations pooled",
             "env steps (mean)",
-            "final return, mean +- std over seeds",
+            "return at the last pooled generation, mean +- std over seeds",
         ],
         rows,
     )
@@ -312,29 +414,72 @@ def task_markdown(s: dict[str, Any], figure: str) -> list[str]:
     return out + [""]
 
 
-def build_report(paths: Sequence[str | Path], out: Path, level: float | None = None) -> dict[str, Any]:
-    """Find the runs under ``paths``, write report.md, report.json and figures into ``out``; return the numbers."""
+def summarize(
+    paths: Sequence[str | Path],
+    out: Path,
+    level: float | None = None,
+    strict: bool = False,
+    fallback_levels: dict[str, tuple[float, str]] | None = None,
+    published: dict[str, dict[str, tuple[int, float, float]]] | None = None,
+) -> tuple[list[RunRecord], dict[str, Any], dict[str, str]]:
+    """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only), draw one
+    figure per task into ``out``; ``(runs, {env: summary}, {env: figure path})``.
+
+    R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source; the
+    source's words before " (" label the figure's line).
+    ``published[env][algo]`` = (generation, mean, std) is drawn on the figure as a marker.
+    """
     runs = find_runs(paths)
+    if not runs:
+        raise SpnError(
+            f"no run found under {', '.join(map(str, paths))}: a run directory holds progress.csv and "
+            ".hydra/config.yaml (or config.yaml)"
+        )
     out.mkdir(parents=True, exist_ok=True)
-    lines = ["# SPN report", "", f"Runs found under {', '.join(map(str, paths))}: {len(runs)}.", ""]
     summaries: dict[str, Any] = {}
     figures: dict[str, str] = {}
-    if not runs:
-        lines.append("No run found (a run directory holds progress.csv and .hydra/config.yaml).")
-    if runs and not any(run.kind == "ppo" for run in runs):
+    for env, algos in group_runs(runs).items():
+        pools, left = choose_pools(algos, strict)
+        task_level, source, note = level, "--ppo-level", ""
+        if task_level is None and PPO_LEVEL_ALGO not in pools and env in (fallback_levels or {}):
+            task_level, source = fallback_levels[env]
+            note = source.split(" (")[0]
+        summary = task_summary(env, pools, task_level, source, left)
+        summaries[env] = summary
+        if pools:
+            reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
+            marks = (published or {}).get(env)
+            figure = task_figure(
+                summary["env_id"], pools, summary["ppo_level"], out / f"{env}.png", reached, marks, note
+            )
+            figures[env] = str(figure)
+    return runs, summaries, figures
+
+
+def stopped_lines(runs: Sequence[RunRecord]) -> list[str]:
+    """The runs that did not reach their budget, one line each (env, method, seed, how far, where)."""
+    stopped = [run for run in runs if not run.finished]
+    if not stopped:
+        return []
+    lines = [f"Runs that did not reach their budget ({len(stopped)}), never pooled with finished runs:", ""]
+    lines += [f"- {r.env} {r.algo} seed {r.seed}: {r.progress_text} ({shown_path(r.path)})" for r in stopped]
+    return lines + [""]
+
+
+def build_report(paths: Sequence[str | Path], out: Path, level: float | None = None) -> dict[str, Any]:
+    """Find the runs under ``paths``, write report.md, report.json and figures into ``out``; return the numbers."""
+    runs, summaries, figures = summarize(paths, out, level)
+    lines = ["# SPN report", "", f"Runs found under {', '.join(map(str, paths))}: {len(runs)}.", ""]
+    lines += stopped_lines(runs)
+    if not any(run.kind == "ppo" for run in runs):
         lines += [
             "No PPO run found: PPO curves, the DPN-PPO level and measured PPO pass counts are missing "
             "(E_PPO below is the paper's model with its published counts, labelled as such).",
             "",
         ]
     lines += ["Energy model: e_MAC = 4.6 pJ, e_AC = 0.9 pJ (45 nm); see spn_torchrl/energy.py and SPEC.md.", ""]
-    for env, algos in group_runs(runs).items():
-        summary = task_summary(env, algos, level)
-        figure = f"{env}.png"
-        reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}
-        task_figure(summary["env_id"], algos, summary["ppo_level"], out / figure, reached)
-        summaries[env], figures[env] = summary, str(out / figure)
-        lines += task_markdown(summary, figure)
+    for env, summary in summaries.items():
+        lines += task_markdown(summary, f"{env}.png")
     (out / "report.md").write_text("\n".join(lines))
     (out / "report.json").write_text(json.dumps(summaries, indent=2, default=float))
     backends = {run.config.get("logger", {}).get("backend") for run in runs}
@@ -342,6 +487,7 @@ def build_report(paths: Sequence[str | Path], out: Path, level: float | None = N
         "tasks": summaries,
         "figures": figures,
         "markdown": str(out / "report.md"),
+        "stopped": [left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in runs if not run.finished],
         "wandb_projects": sorted({str(run.config.logger.project) for run in runs}) if backends == {"wandb"} else [],
     }
 
@@ -358,7 +504,9 @@ def log_to_wandb(result: dict[str, Any], project: str) -> None:
     )
     try:
         for env, s in result["tasks"].items():
-            payload: dict[str, Any] = {f"report/{env}/curves": wandb.Image(result["figures"][env])}
+            payload: dict[str, Any] = {}
+            if env in result["figures"]:
+                payload[f"report/{env}/curves"] = wandb.Image(result["figures"][env])
             for section in ("data_efficiency", "inference", "optim"):
                 columns = sorted({k for v in s[section].values() for k in v if not isinstance(v[k], list)})
                 data = [[algo] + [v.get(k) for k in columns] for algo, v in s[section].items()]
@@ -367,28 +515,3 @@ def log_to_wandb(result: dict[str, Any], project: str) -> None:
             run.log(payload)
     finally:
         run.finish()
-
-
-def main(argv: Sequence[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m spn_torchrl.report", description=__doc__.splitlines()[0])
-    parser.add_argument("paths", nargs="+", help="run or multirun directories (searched recursively)")
-    parser.add_argument("--ppo-level", type=float, default=None, help="PPO level R (default: from dpn_ppo runs found)")
-    parser.add_argument("--out", type=Path, default=Path("report"), help="output directory (default: ./report)")
-    parser.add_argument(
-        "--wandb",
-        action="store_true",
-        help="also log figures and tables to W&B (automatic when every run used logger=wandb)",
-    )
-    parser.add_argument(
-        "--wandb-project", default=None, help="W&B project (default: the runs' logger.project, else spn_torchrl)"
-    )
-    args = parser.parse_args(argv)
-    np.seterr(all="ignore")
-    result = build_report(args.paths, args.out, args.ppo_level)
-    if args.wandb or result["wandb_projects"]:
-        log_to_wandb(result, args.wandb_project or (result["wandb_projects"] or ["spn_torchrl"])[0])
-    print(f"wrote {result['markdown']} ({len(result['tasks'])} task(s))")
-
-
-if __name__ == "__main__":
-    main()

@@ -10,7 +10,11 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from spn_torchrl.errors import SpnError
 from spn_torchrl.records import read_progress
+
+# where a run's resolved config lies: a Hydra run directory, or a collected copy (reproduction/runs/)
+CONFIG_PATHS = (Path(".hydra") / "config.yaml", Path("config.yaml"))
 
 
 @dataclass
@@ -41,26 +45,81 @@ class RunRecord:
     def seed(self) -> int:
         return int(self.config.seed)
 
+    @property
+    def budget(self) -> int | None:
+        """What the run was asked for: generations (GA) or env steps (PPO); None where the config does not say."""
+        value = self.config.algo.get("generations" if self.kind == "ga" else "total_env_steps")
+        return None if value is None else int(value)
+
+    @property
+    def done(self) -> int:
+        """How far it got: generations logged (GA) or its last total_env_steps (PPO)."""
+        if self.kind == "ga":
+            return len(self.rows)
+        return int(self.rows[-1].get("total_env_steps") or 0)
+
+    @property
+    def finished(self) -> bool:
+        """Whether the run reached its budget (a run whose config states none counts as finished)."""
+        return self.budget is None or self.done >= self.budget
+
+    @property
+    def progress_text(self) -> str:
+        """``3 of 30 generations`` or ``2000 of 1000000 env steps``."""
+        unit = "generations" if self.kind == "ga" else "env steps"
+        return f"{self.done} of {'?' if self.budget is None else self.budget} {unit}"
+
+    def snn(self, name: str, default: Any) -> Any:
+        """An SNN constant (``hidden``, ``time_steps``, ...) from ``algo.snn`` (new schema) or ``algo`` (old)."""
+        algo = self.config.algo
+        snn = algo.get("snn")
+        if snn is not None and name in snn:
+            return snn[name]
+        return algo.get(name, default)
+
     def column(self, name: str) -> np.ndarray:
         """One progress.csv column as floats (NaN where a row lacks it)."""
         return np.array([float(row.get(name, np.nan)) if row.get(name, "") != "" else np.nan for row in self.rows])
 
 
+def config_path(run_dir: str | Path) -> Path | None:
+    """A run directory's resolved config: ``.hydra/config.yaml`` (Hydra) or ``config.yaml`` (a collected copy)."""
+    for relative in CONFIG_PATHS:
+        if (Path(run_dir) / relative).is_file():
+            return Path(run_dir) / relative
+    return None
+
+
 def find_runs(paths: Iterable[str | Path]) -> list[RunRecord]:
-    """Every directory under ``paths`` (or a path itself) holding progress.csv and .hydra/config.yaml."""
+    """Every directory under ``paths`` (or a path itself) holding progress.csv and its config (``.hydra/config.yaml``
+    or ``config.yaml``) with at least one row; :class:`SpnError` for a path that does not exist."""
     found: dict[Path, RunRecord] = {}
     for root in map(Path, paths):
+        if not root.exists():
+            raise SpnError(f"{root} does not exist")
         candidates = [root / "progress.csv"] if (root / "progress.csv").exists() else []
         candidates += sorted(root.rglob("progress.csv")) if root.is_dir() else []
         for progress in candidates:
             run_dir = progress.parent.resolve()
-            config = run_dir / ".hydra" / "config.yaml"
-            if run_dir in found or not config.exists():
+            config = config_path(run_dir)
+            if run_dir in found or config is None:
                 continue
             rows = read_progress(progress)
             if rows:
                 found[run_dir] = RunRecord(run_dir, OmegaConf.load(config), rows)
     return sorted(found.values(), key=lambda r: (r.env, r.algo, r.seed, str(r.path)))
+
+
+def split_finished(runs: Sequence[RunRecord]) -> tuple[list[RunRecord], list[RunRecord]]:
+    """(runs that reached their budget, runs that stopped early or are still running)."""
+    return [r for r in runs if r.finished], [r for r in runs if not r.finished]
+
+
+def pool_choice(runs: Sequence[RunRecord]) -> tuple[list[RunRecord], list[RunRecord]]:
+    """(runs to pool, runs left out) of one method on one task: the finished runs, the others left out; where
+    none finished, every run is pooled (the caller says so) over the rows they all reached."""
+    finished, stopped = split_finished(runs)
+    return (finished, stopped) if finished else (list(runs), [])
 
 
 def group_runs(runs: Sequence[RunRecord]) -> dict[str, dict[str, list[RunRecord]]]:
@@ -71,9 +130,14 @@ def group_runs(runs: Sequence[RunRecord]) -> dict[str, dict[str, list[RunRecord]
     return groups
 
 
+def common_length(runs: Sequence[RunRecord]) -> int:
+    """The rows (generations or iterations) that every run of ``runs`` reached."""
+    return min(len(run.rows) for run in runs)
+
+
 def pooled(runs: Sequence[RunRecord], name: str) -> np.ndarray:
-    """Column ``name`` of every run stacked as [seeds, rows], cut to the shortest run."""
-    length = min(len(run.rows) for run in runs)
+    """Column ``name`` of every run stacked as [seeds, rows], cut to the rows every run reached."""
+    length = common_length(runs)
     return np.stack([run.column(name)[:length] for run in runs])
 
 
@@ -83,6 +147,7 @@ def mean_std(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def last_value(runs: Sequence[RunRecord], name: str) -> float:
-    """Mean over seeds of each run's last value of ``name`` (NaN if no run logged it)."""
-    values = [run.column(name)[-1] for run in runs if name in run.rows[-1]]
+    """Mean over seeds of ``name`` at the last row every run reached (NaN if no run logged it)."""
+    row = common_length(runs) - 1
+    values = [run.column(name)[row] for run in runs if name in run.rows[row]]
     return float(np.mean(values)) if values else float("nan")

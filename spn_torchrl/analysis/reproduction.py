@@ -1,0 +1,420 @@
+"""The reproduction report: finished runs against the paper's published figures, claim by claim.
+
+``python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/`` writes
+``reproduction/README.md`` (``PREFACE.md`` of the same directory verbatim at the top, if there is one), one PNG
+per task and ``report.json``. Only runs that reached their budget are pooled; the others are listed apart. Our
+seeds are tested against the paper's 10 seeds by Welch's two-sided t-test from summary statistics (alpha 0.05).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from spn_torchrl.analysis import paper
+from spn_torchrl.analysis.energy import first_generation_at, sig
+from spn_torchrl.analysis.report import PPO_LEVEL_ALGO, left_out_entry, stopped_lines, summarize, task_markdown
+from spn_torchrl.analysis.runs import RunRecord
+from spn_torchrl.analysis.stats import ALPHA, p_text, sample_sd, verdict, welch
+
+COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
+CONFIRMED, NOT_CONFIRMED, NOT_RUN = "confirmed", "not confirmed", "not yet run"
+PAPER_R_SOURCE = "paper's R (Table 1: DPN-PPO after 1e6 steps on Gym v2; no finished dpn_ppo run here)"
+
+
+def paper_levels() -> dict[str, tuple[float, str]]:
+    """The paper's published PPO level R of each MuJoCo task, labelled as the paper's."""
+    return {env: (level, PAPER_R_SOURCE) for env, level in paper.PPO_LEVEL.items()}
+
+
+def published_markers() -> dict[str, dict[str, tuple[int, float, float]]]:
+    """The paper's generation-100 mean and std of each task and GA method, for the figures."""
+    out: dict[str, dict[str, tuple[int, float, float]]] = {}
+    for (env, algo), final in paper.FINAL.items():
+        out.setdefault(env, {})[algo] = (paper.GENERATIONS, final.mean, final.std)
+    return out
+
+
+def _title(env: str) -> str:
+    return paper.TASK_TITLES.get(env, env)
+
+
+def _method(tasks: dict[str, Any], env: str, algo: str) -> dict[str, Any] | None:
+    return tasks.get(env, {}).get("methods", {}).get(algo)
+
+
+def _shortened(m: dict[str, Any]) -> str:
+    """`` (deliberately shortened budget: 20 of the paper's 100 generations)`` or empty."""
+    generations = m["budget"].get("generations")
+    if m["kind"] == "ga" and generations is not None and generations != paper.GENERATIONS and m["finished"]:
+        return f" (deliberately shortened budget: {generations} of the paper's {paper.GENERATIONS} generations)"
+    return ""
+
+
+def _note(*methods: dict[str, Any]) -> str:
+    """What qualifies our figure: fewer seeds than the paper's 10, a deliberately shortened budget."""
+    seeds = [len(m["seeds"]) for m in methods]
+    text = f" [{' / '.join(map(str, seeds))} seed(s) of the paper's {paper.SEEDS}]" if min(seeds) < paper.SEEDS else ""
+    return text + _shortened(methods[0])
+
+
+def _value(x: float, scale: float | None = None) -> str:
+    """A return as the tables print it: no decimals from 1000 up (judged on ``scale``, default ``x``), else one."""
+    return f"{x:.0f}" if abs(x if scale is None else scale) >= 1000 else f"{x:.1f}"
+
+
+def _pm(mean: float, std: float | None) -> str:
+    return f"R = {mean:g} (mean only)" if std is None else f"{_value(mean)} +- {_value(std, mean)}"
+
+
+def against_paper(env: str, algo: str, m: dict[str, Any]) -> dict[str, Any]:
+    """Our last generation against the paper's generation 100 for one method: numbers, Welch's test, verdict."""
+    published = paper.FINAL.get((env, algo))
+    row: dict[str, Any] = {
+        "env": env,
+        "algo": algo,
+        "seeds": len(m["seeds"]),
+        "generation": m["rows"],
+        "mean": m["final_return_mean"],
+        "std": m["final_return_std"],
+        "min": m["final_return_min"],
+        "max": m["final_return_max"],
+        "shortened": _shortened(m),
+        "paper": None if published is None else {"mean": published.mean, "std": published.std, "n": published.n},
+    }
+    if published is None and algo == PPO_LEVEL_ALGO and env in paper.PPO_LEVEL:
+        row["paper"] = {"mean": paper.PPO_LEVEL[env], "std": None, "n": paper.SEEDS}
+        row["verdict"] = "not tested: the paper gives R without a std"
+        return row
+    if published is None:
+        row["verdict"] = "no published figure"
+        return row
+    if len(m["seeds"]) < 2:
+        row["verdict"] = "not tested (one seed)"
+        return row
+    test = welch(
+        m["final_return_mean"],
+        m["final_return_sd"],
+        len(m["seeds"]),
+        published.mean,
+        sample_sd(published.std, published.n),
+        published.n,
+    )
+    row.update(t=test.t, df=test.df, p=test.p)
+    text = verdict(test)
+    if m["kind"] == "ga" and m["rows"] != paper.GENERATIONS:
+        text = f"ours at generation {m['rows']} vs the paper's at {paper.GENERATIONS}: {text}"
+    row["verdict"] = text
+    return row
+
+
+def _claim(claim: str, paper_text: str, ours: str, status: str) -> dict[str, str]:
+    return {"claim": claim, "paper": paper_text, "ours": ours, "status": status}
+
+
+def _reach_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+    out = []
+    m = _method(tasks, "cartpole", "conn_ga")
+    claim = "Connections-GA reaches the upper limit 500 on CartPole-v1"
+    paper_text = f"500 at generation 100; the mean reaches 500 by generation {paper.CARTPOLE_MEAN_AT_LIMIT_BY}"
+    if m is None:
+        out.append(_claim(claim, paper_text, "-", NOT_RUN))
+    else:
+        g = first_generation_at(m["return_mean_curve"], paper.CARTPOLE_LIMIT)
+        ours = f"mean over {len(m['seeds'])} seeds at generation {m['rows']}: {m['final_return_mean']:.1f}; " + (
+            f"the mean reaches 500 at generation {g}" if g else f"the mean never reaches 500 in {m['rows']} generations"
+        )
+        out.append(_claim(claim, paper_text, ours + _note(m), CONFIRMED if g else NOT_CONFIRMED))
+    for env in paper.PPO_LEVEL:
+        m = _method(tasks, env, "conn_ga")
+        claim = f"Connections-GA reaches the PPO level R on {_title(env)}"
+        paper_text = (
+            f"R = {paper.PPO_LEVEL[env]:g}; the mean curve reaches it at generation {paper.FIRST_GENERATION_AT_R[env]} "
+            f"(authors' logs; Table 1 prints G = {paper.TABLE1[env].G})"
+        )
+        if m is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        task = tasks[env]
+        g = task["data_efficiency"].get("conn_ga", {}).get("G")
+        level = f"R = {task['ppo_level']:g} ({_short_source(task['ppo_level_source'])})"
+        ours = f"{level}: " + (f"reached at generation {g}" if g else f"not reached in {m['rows']} generations")
+        out.append(_claim(claim, paper_text, ours + _note(m), CONFIRMED if g else NOT_CONFIRMED))
+    return out
+
+
+def _short_source(source: str) -> str:
+    return "paper's R" if source == PAPER_R_SOURCE else source
+
+
+def _versus(a: dict[str, Any], b: dict[str, Any]) -> tuple[str, float | None]:
+    """``2650 vs 2400`` and Welch's p of our two methods (None with fewer than 2 seeds each)."""
+    text = f"{_value(a['final_return_mean'])} vs {_value(b['final_return_mean'])}"
+    if len(a["seeds"]) < 2 or len(b["seeds"]) < 2:
+        return text, None
+    test = welch(
+        a["final_return_mean"],
+        a["final_return_sd"],
+        len(a["seeds"]),
+        b["final_return_mean"],
+        b["final_return_sd"],
+        len(b["seeds"]),
+    )
+    return text, test.p
+
+
+def _paper_versus(env: str) -> tuple[str, float]:
+    c, w = paper.FINAL[(env, "conn_ga")], paper.FINAL[(env, "weights_ga")]
+    test = welch(c.mean, sample_sd(c.std, c.n), c.n, w.mean, sample_sd(w.std, w.n), w.n)
+    return f"{_value(c.mean)} vs {_value(w.mean)}", test.p
+
+
+def _weights_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+    out = []
+    for env in (*paper.CONNECTIONS_BEAT_WEIGHTS, *paper.CONNECTIONS_MATCH_WEIGHTS):
+        beat = env in paper.CONNECTIONS_BEAT_WEIGHTS
+        claim = f"Connections-GA {'beats' if beat else 'matches'} Weights-GA on {_title(env)} (generation 100)"
+        text, p = _paper_versus(env)
+        paper_text = f"{text} (Welch on the published figures: {p_text(p)})"
+        c, w = _method(tasks, env, "conn_ga"), _method(tasks, env, "weights_ga")
+        if c is None or w is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        ours, p = _versus(c, w)
+        ours = f"{ours} at generations {c['rows']} / {w['rows']}" + (f" (Welch: {p_text(p)})" if p is not None else "")
+        if beat:
+            status = CONFIRMED if c["final_return_mean"] > w["final_return_mean"] else NOT_CONFIRMED
+        else:
+            status = NOT_CONFIRMED if p is None or p < ALPHA else CONFIRMED
+        out.append(_claim(claim, paper_text, ours + _note(c, w), status))
+    for env in paper.WEIGHTS_BELOW_R:
+        claim = f"Weights-GA does not reach the PPO level R on {_title(env)} in 100 generations"
+        paper_text = (
+            f"mean {_value(paper.FINAL[(env, 'weights_ga')].mean)} at generation 100 < R = {paper.PPO_LEVEL[env]:g}"
+        )
+        w = _method(tasks, env, "weights_ga")
+        if w is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        task = tasks[env]
+        g = task["data_efficiency"].get("weights_ga", {}).get("G")
+        ours = f"R = {task['ppo_level']:g} ({_short_source(task['ppo_level_source'])}): " + (
+            f"reached at generation {g}" if g else f"not reached in {w['rows']} generations"
+        )
+        out.append(_claim(claim, paper_text, ours + _note(w), NOT_CONFIRMED if g else CONFIRMED))
+    return out
+
+
+def _conn_ppo_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+    out = []
+    for env in paper.CONN_PPO_TASKS:
+        claim = f"Connections-PPO does not converge on {_title(env)} (stays below R; its return even decreases)"
+        paper_text = "Fig. 6: the curve does not converge and decreases over training"
+        m = _method(tasks, env, "conn_ppo")
+        if m is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        curve, level = m["return_mean_curve"], tasks[env]["ppo_level"]
+        trend = "decreases" if curve[-1] < curve[0] else "does not decrease"
+        if level is None:
+            out.append(_claim(claim, paper_text, f"first {curve[0]:.1f}, last {curve[-1]:.1f}; no R", NOT_CONFIRMED))
+            continue
+        below = m["final_return_mean"] < level
+        ours = f"first iteration {_value(curve[0])}, last {_value(curve[-1])} ({trend}); R = {level:g}" + _note(m)
+        out.append(_claim(claim, paper_text, ours, CONFIRMED if below else NOT_CONFIRMED))
+    return out
+
+
+def _at_least(ours: float | None, published: float) -> bool:
+    """Ours rounded as the paper prints (one decimal) is at least the paper's figure."""
+    return ours is not None and not math.isnan(ours) and round(ours, 1) >= published
+
+
+def _table_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+    out = []
+    for env, row in paper.TABLE1.items():
+        claim = f"Table 1: Connections-GA needs at most gamma = {row.gamma} times PPO's data on {_title(env)}"
+        paper_text = f"G = {row.G}, E = {sig(row.E)}, gamma = {row.gamma}"
+        m = _method(tasks, env, "conn_ga")
+        eff = tasks.get(env, {}).get("data_efficiency", {}).get("conn_ga")
+        if m is None or eff is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        if eff["G"] is None:
+            ours = f"R not reached in {m['rows']} generations: no gamma"
+            out.append(_claim(claim, paper_text, ours + _note(m), NOT_CONFIRMED))
+            continue
+        ours = f"G = {eff['G']}, E = {sig(eff['E'])}, gamma = {sig(eff['gamma'])}"
+        ok = eff["gamma"] <= row.gamma + 0.05
+        out.append(_claim(claim, paper_text, ours + _note(m), CONFIRMED if ok else NOT_CONFIRMED))
+    for env, row in paper.TABLE2.items():
+        claim = f"Table 2: SPN inference energy {row.ratio}x lower than the DPN's on {_title(env)}"
+        paper_text = f"E_DPN {sig(row.dpn)} / E_SPN {sig(row.spn)} pJ = {row.ratio}"
+        infer = tasks.get(env, {}).get("inference", {}).get("conn_ga")
+        if infer is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        ours = (
+            f"E_DPN {sig(infer['e_dpn'])} / E_SPN {sig(infer['e_spn_dense'])} pJ = {infer['ratio_dense']:.2f} "
+            f"(dense, paper-faithful; mask-aware: {sig(infer['ratio_mask'])})"
+        )
+        ours += _note(tasks[env]["methods"]["conn_ga"])
+        out.append(
+            _claim(claim, paper_text, ours, CONFIRMED if _at_least(infer["ratio_dense"], row.ratio) else NOT_CONFIRMED)
+        )
+    for env, row in paper.TABLE3.items():
+        claim = f"Table 3: GA optimisation energy {row.ratio}x lower than PPO's on {_title(env)}"
+        paper_text = f"E_PPO {sig(row.dpn)} / E_GA {sig(row.spn)} pJ = {row.ratio}"
+        task = tasks.get(env, {})
+        optim = task.get("optim", {}).get("conn_ga")
+        if optim is None:
+            out.append(_claim(claim, paper_text, "-", NOT_RUN))
+            continue
+        reached = task.get("data_efficiency", {}).get("conn_ga", {}).get("G") is not None
+        ours = (
+            f"E_PPO {sig(task['ppo']['e_ppo'])} / E_GA {sig(optim['e_ga_dense'])} pJ = {optim['ratio_dense']:.1f} "
+            f"(dense; E_GA over {optim['steps_source']}; E_PPO: "
+            f"{'paper counts' if 'not measured' in task['ppo']['source'] else 'measured'})"
+        )
+        ok = reached and _at_least(optim["ratio_dense"], row.ratio)
+        out.append(
+            _claim(claim, paper_text, ours + _note(task["methods"]["conn_ga"]), CONFIRMED if ok else NOT_CONFIRMED)
+        )
+    return out
+
+
+def claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+    """Each of the paper's claims with the paper's figure, ours and a status (confirmed, not confirmed, not yet run)."""
+    return _reach_claims(tasks) + _weights_claims(tasks) + _conn_ppo_claims(tasks) + _table_claims(tasks)
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+
+
+def comparison_markdown(env: str, s: dict[str, Any], figure: str | None) -> tuple[list[str], list[dict[str, Any]]]:
+    """One task's section: our last generation against the paper's, per method, and the learning curves."""
+    out = [f"## {_title(env)} ({s['env_id']}, n={s['n']}, m={s['m']})", ""]
+    if figure:
+        out += [f"![learning curves]({figure})", ""]
+    rows, data = [], []
+    for algo, m in s["methods"].items():
+        row = against_paper(env, algo, m)
+        data.append(row)
+        published = row["paper"]
+        rows.append(
+            [
+                paper.METHOD_TITLES.get(algo, algo),
+                row["seeds"],
+                f"{row['generation']}{' (shortened, deliberate)' if row['shortened'] else ''}",
+                _pm(row["mean"], row["std"]),
+                f"{_value(row['min'])} - {_value(row['max'])}",
+                "-" if published is None else _pm(published["mean"], published["std"]),
+                row["verdict"],
+            ]
+        )
+    if env in paper.PPO_LEVEL and PPO_LEVEL_ALGO not in s["methods"]:
+        rows.append(["DPN-PPO", 0, "-", "not yet run", "-", f"R = {paper.PPO_LEVEL[env]:g} (mean only)", "-"])
+    out += _table(
+        [
+            "method",
+            "seeds",
+            "generation / iteration",
+            "ours: mean +- std",
+            "ours: min - max",
+            "paper: mean +- std (gen. 100, 10 seeds)",
+            "Welch's t-test, two-sided, alpha 0.05",
+        ],
+        rows,
+    )
+    for algo, m in s["methods"].items():
+        if _shortened(m):
+            out += ["", f"{paper.METHOD_TITLES.get(algo, algo)}:{_shortened(m)}."]
+    left = [(algo, e) for algo, m in s["methods"].items() for e in m["left_out"]]
+    left += [(algo, e) for algo, entries in s["left_out"].items() for e in entries]
+    if left:
+        out += [
+            "",
+            "Not pooled (stopped before their budget): "
+            + "; ".join(f"{a} seed {e['seed']} ({e['progress']})" for a, e in left)
+            + ".",
+        ]
+    level = s["ppo_level"]
+    if level is not None or env in paper.PPO_LEVEL:
+        out += ["", f"PPO level R: {'none' if level is None else f'{level:g}'} ({s['ppo_level_source']})."]
+    return out + [""], data
+
+
+def _commits(runs: Sequence[RunRecord]) -> list[str]:
+    commits = {(run.path / "COMMIT").read_text().strip() for run in runs if (run.path / "COMMIT").is_file()}
+    return sorted(commits)
+
+
+def build_reproduction(
+    paths: Sequence[str | Path], out: Path, level: float | None = None, preface: Path | None = None
+) -> dict[str, Any]:
+    """Write ``out/README.md`` (after ``preface``, default ``out/PREFACE.md``), figures and report.json from the
+    finished runs under ``paths``; return the numbers, the claims and the runs left out."""
+    out = Path(out)
+    runs, tasks, figures = summarize(
+        paths, out, level, strict=True, fallback_levels=paper_levels(), published=published_markers()
+    )
+    preface = out / "PREFACE.md" if preface is None else Path(preface)
+    lines = [preface.read_text().rstrip(), ""] if preface.is_file() else []
+    finished = [run for run in runs if run.finished]
+    commits = _commits(runs)
+    lines += [
+        "# Results against the paper",
+        "",
+        f"Written by `{COMMAND}` from {len(finished)} finished run(s)"
+        + (f" ({len(runs) - len(finished)} more did not reach their budget)" if len(runs) > len(finished) else "")
+        + "; "
+        f"commits: {', '.join(f'`{c[:12]}`' for c in commits) or 'not recorded'}. Do not edit by hand.",
+        "",
+        "Ours: return of the generation's elite (mean of its evaluation episodes) at the last generation, mean +- "
+        "std over seeds (std with ddof=0, as the paper's), min - max over seeds. The paper's: the authors' 10 seeds "
+        "at generation 100 on Gym v2 (we run Gymnasium v5; see the preface for the simulator's shift). Welch's "
+        "t-test compares our seeds with the paper's from summary statistics (sample variances; the paper's std "
+        f"converted from ddof=0 with n=10), two-sided, alpha {ALPHA}.",
+        "",
+    ]
+    lines += stopped_lines(runs)
+    claim_rows = claims(tasks)
+    lines += ["## The paper's claims", ""]
+    lines += _table(
+        ["claim", "paper", "ours", "status"],
+        [[c["claim"], c["paper"], c["ours"], f"**{c['status']}**"] for c in claim_rows],
+    )
+    lines += [
+        "",
+        "Rules: *reaches R*: the mean-over-seeds curve reaches R at some generation. *Beats*: our Connections-GA "
+        "mean is higher (Welch's p shown, not required). *Matches*: no significant difference (p >= 0.05). "
+        "*Table 1*: our gamma is at most the paper's. *Tables 2-3*: our ratio (dense count, as the paper's), "
+        "rounded to one decimal, is at least the paper's; Table 3 also needs R reached. *Not yet run*: no finished "
+        "run of the method on the task. Where no dpn_ppo run finished, R is the paper's published R (Gym v2), "
+        'labelled "paper\'s R".',
+        "",
+    ]
+    comparisons = {}
+    for env, summary in tasks.items():
+        figure = Path(figures[env]).name if env in figures else None
+        section, comparisons[env] = comparison_markdown(env, summary, figure)
+        lines += section
+    lines += ["## Details per task (the report's own tables: data efficiency, energy)", ""]
+    for summary in tasks.values():
+        lines += ["#" + line if line.startswith("#") else line for line in task_markdown(summary, None)]
+    (out / "README.md").write_text("\n".join(lines).rstrip() + "\n")
+    payload = {"tasks": tasks, "comparisons": comparisons, "claims": claim_rows}
+    (out / "report.json").write_text(json.dumps(payload, indent=2, default=float))
+    return {
+        "tasks": tasks,
+        "figures": figures,
+        "markdown": str(out / "README.md"),
+        "claims": claim_rows,
+        "comparisons": comparisons,
+        "stopped": [left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in runs if not run.finished],
+    }

@@ -1,0 +1,153 @@
+"""The reproduction report: finished runs against the paper's published figures, claim by claim (runs by hand)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic_runs import write_run
+
+from spn_torchrl.analysis import energy, paper
+from spn_torchrl.analysis.energy import sig
+from spn_torchrl.analysis.reproduction import PAPER_R_SOURCE, build_reproduction
+from spn_torchrl.analysis.stats import sample_sd, verdict, welch
+
+ROOT = Path(__file__).resolve().parents[1]
+CONN_FINAL = [2700.0, 2800.0, 2900.0]
+WEIGHTS_FINAL = [1000.0, 1100.0, 1200.0]
+
+
+def curve(final: float, generations: int = 100) -> list[float]:
+    return list(np.linspace(final / 10, final, generations))
+
+
+@pytest.fixture(scope="module")
+def evidence(tmp_path_factory) -> Path:
+    """HalfCheetah: 3 finished seeds of Connections-GA and of Weights-GA, one Connections-GA seed stopped at 20
+    of 100; HumanoidStandup: Connections-GA at a deliberately shortened budget of 20 generations."""
+    root = tmp_path_factory.mktemp("evidence") / "runs"
+    for seed, (c, w) in enumerate(zip(CONN_FINAL, WEIGHTS_FINAL)):
+        write_run(root, "halfcheetah", "HalfCheetah-v5", "conn_ga", seed, curve(c), layout="flat")
+        write_run(root, "halfcheetah", "HalfCheetah-v5", "weights_ga", seed, curve(w), layout="flat")
+        write_run(root, "humanoidstandup", "HumanoidStandup-v5", "conn_ga", seed, curve(1.2e5 + seed, 20))
+    write_run(root, "halfcheetah", "HalfCheetah-v5", "conn_ga", 3, curve(9000.0)[:20], generations=100)
+    return root
+
+
+@pytest.fixture(scope="module")
+def result(evidence, tmp_path_factory):
+    out = tmp_path_factory.mktemp("reproduction")
+    (out / "PREFACE.md").write_text("# Reproduction\n\nA hand-written preface.\n")
+    return build_reproduction([evidence], out)
+
+
+def claim(result, text: str) -> dict:
+    [row] = [c for c in result["claims"] if c["claim"].startswith(text)]
+    return row
+
+
+def test_the_preface_comes_first_verbatim(result):
+    readme = Path(result["markdown"])
+    assert readme.name == "README.md"
+    assert readme.read_text().startswith("# Reproduction\n\nA hand-written preface.\n\n# Results against the paper")
+    assert (readme.parent / "halfcheetah.png").read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((readme.parent / "report.json").read_text())["claims"] == result["claims"]
+
+
+def test_unfinished_runs_are_not_pooled_and_listed_apart(result):
+    conn = result["tasks"]["halfcheetah"]["methods"]["conn_ga"]
+    assert conn["seeds"] == [0, 1, 2] and conn["rows"] == 100
+    assert conn["final_return_mean"] == pytest.approx(2800.0)
+    assert (conn["final_return_min"], conn["final_return_max"]) == (2700.0, 2900.0)
+    md = Path(result["markdown"]).read_text()
+    assert "halfcheetah conn_ga seed 3: 20 of 100 generations" in md
+    assert "Not pooled (stopped before their budget): conn_ga seed 3 (20 of 100 generations)." in md
+
+
+def test_welch_verdicts_against_the_published_figures(result):
+    rows = {r["algo"]: r for r in result["comparisons"]["halfcheetah"]}
+    published = paper.FINAL[("halfcheetah", "conn_ga")]
+    expected = welch(2800.0, float(np.std(CONN_FINAL, ddof=1)), 3, published.mean, sample_sd(published.std, 10), 10)
+    assert rows["conn_ga"]["p"] == pytest.approx(expected.p)
+    assert rows["conn_ga"]["verdict"] == verdict(expected) and rows["conn_ga"]["verdict"].startswith("consistent")
+    assert rows["weights_ga"]["verdict"].startswith("lower than the paper, p = ")
+    md = Path(result["markdown"]).read_text()
+    assert f"| Connections-GA | 3 | 100 | 2800 +- 82 | 2700 - 2900 | 2759 +- 772 | {rows['conn_ga']['verdict']} |" in md
+
+
+def test_the_claims_table(result):
+    reach = claim(result, "Connections-GA reaches the PPO level R on HalfCheetah")
+    g = int(np.argmax(np.mean([curve(c) for c in CONN_FINAL], axis=0) >= paper.PPO_LEVEL["halfcheetah"])) + 1
+    assert reach["status"] == "confirmed" and f"reached at generation {g}" in reach["ours"]
+    assert "(paper's R)" in reach["ours"]
+    assert "[3 seed(s) of the paper's 10]" in reach["ours"]
+    assert (
+        "[3 / 3 seed(s) of the paper's 10]" in claim(result, "Connections-GA beats Weights-GA on HalfCheetah")["ours"]
+    )
+    assert result["tasks"]["halfcheetah"]["ppo_level_source"] == PAPER_R_SOURCE
+    assert claim(result, "Connections-GA beats Weights-GA on HalfCheetah")["status"] == "confirmed"
+    assert claim(result, "Weights-GA does not reach the PPO level R on HalfCheetah")["status"] == "confirmed"
+    assert claim(result, "Connections-GA reaches the PPO level R on Swimmer")["status"] == "not yet run"
+    assert claim(result, "Connections-PPO does not converge on HalfCheetah")["status"] == "not yet run"
+    assert claim(result, "Connections-GA reaches the upper limit 500 on CartPole-v1")["status"] == "not yet run"
+    gamma = claim(result, "Table 1: Connections-GA needs at most gamma = 18.3 times PPO's data on HalfCheetah")
+    assert (
+        gamma["status"] == "confirmed" and f"G = {g}, E = {sig(g * 1000.0)}, gamma = {sig(g * 1e-3)}" in gamma["ours"]
+    )
+    # synthetic spike rate 0.1: E_DPN / E_SPN = (17*64 + 64*6) * 4.6 / (17*64*4.6 + 0.1*64*6*0.9) = 1.34
+    inference = claim(result, "Table 2: SPN inference energy 1.3x lower than the DPN's on HalfCheetah")
+    assert inference["status"] == "confirmed" and "= 1.34" in inference["ours"]
+    standup = claim(result, "Connections-GA reaches the PPO level R on HumanoidStandup")
+    assert standup["status"] == "confirmed"
+    assert "deliberately shortened budget: 20 of the paper's 100 generations" in standup["ours"]
+    md = Path(result["markdown"]).read_text()
+    assert "| Connections-GA reaches the PPO level R on Swimmer |" in md and "**not yet run**" in md
+
+
+def test_a_deliberately_shortened_budget_is_labelled(result):
+    [row] = result["comparisons"]["humanoidstandup"]
+    assert row["generation"] == 20 and row["verdict"].startswith("ours at generation 20 vs the paper's at 100: ")
+    md = Path(result["markdown"]).read_text()
+    assert "Connections-GA: (deliberately shortened budget: 20 of the paper's 100 generations)." in md
+
+
+def test_cli_writes_the_reproduction_readme(evidence, tmp_path):
+    cmd = [sys.executable, "-m", "spn_torchrl.report", str(evidence), "--reproduction", "--out", str(tmp_path)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert f"wrote {tmp_path / 'README.md'}" in proc.stdout
+    assert "halfcheetah conn_ga seed 3: 20 of 100 generations" in proc.stdout
+    assert not (tmp_path / "report.md").exists() and (tmp_path / "humanoidstandup.png").exists()
+
+
+def test_the_typed_in_paper_figures_agree_with_each_other_and_the_energy_model():
+    for env, row in paper.TABLE1.items():
+        assert row.E == pytest.approx(row.G * 3e5) and row.gamma == pytest.approx(row.E / paper.PPO_STEPS)
+        assert paper.TABLE4_GA_FORWARD[env] == row.E
+    v2_sizes = {"halfcheetah": (17, 6), "swimmer": (8, 2), "humanoidstandup": (376, 17)}  # Gym v2 (paper Fig. 3)
+    for env, (n, m) in v2_sizes.items():
+        assert energy.e_dpn(n, m) == pytest.approx(paper.TABLE2[env].dpn, rel=5e-3)
+        assert paper.TABLE2[env].dpn / paper.TABLE2[env].spn == pytest.approx(paper.TABLE2[env].ratio, abs=0.05)
+        e_ppo = energy.e_optim_ppo(n, m, paper.TABLE4_PPO_FORWARD, paper.TABLE4_PPO_BACKWARD)
+        assert e_ppo == pytest.approx(paper.TABLE3[env].dpn, rel=5e-3)
+        assert paper.TABLE3[env].dpn / paper.TABLE3[env].spn == pytest.approx(paper.TABLE3[env].ratio, abs=0.05)
+
+
+def test_finished_dpn_ppo_runs_set_r_instead_of_the_papers(tmp_path):
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        write_run(runs, "swimmer", "Swimmer-v5", "conn_ga", seed, curve(150.0 + seed, 10))
+        write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", seed, [50.0, 90.0 + seed], kind="ppo", total_env_steps=2000)
+    write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", 2, [5.0], kind="ppo", total_env_steps=2000)  # stopped
+    result = build_reproduction([runs], tmp_path / "out")
+    task = result["tasks"]["swimmer"]
+    assert task["ppo_level"] == pytest.approx(90.5) and task["ppo_level_source"].startswith("dpn_ppo runs")
+    assert task["methods"]["dpn_ppo"]["seeds"] == [0, 1]
+    rows = {r["algo"]: r for r in result["comparisons"]["swimmer"]}
+    assert rows["dpn_ppo"]["verdict"] == "not tested: the paper gives R without a std"
+    reach = claim(result, "Connections-GA reaches the PPO level R on Swimmer")
+    assert reach["status"] == "confirmed" and "R = 90.5 (dpn_ppo runs" in reach["ours"]
+    md = Path(result["markdown"]).read_text()
+    assert "R = 107.52 (mean only)" in md and "swimmer dpn_ppo seed 2: 1000 of 2000 env steps" in md
