@@ -58,12 +58,6 @@ def rate_per_env_step(rate_per_sim_step: float, time_steps: int = 4) -> float:
     return rate_per_sim_step * time_steps
 
 
-def implied_rate(e_spn_pj: float, n: int, m: int, hidden: int = HIDDEN) -> float:
-    """The layer-2 rate that makes :func:`e_spn` equal ``e_spn_pj`` (inverse of the dense model)."""
-    first, second = layer_ops([n, hidden, m])
-    return (e_spn_pj - first * E_MAC_PJ) / (second * E_AC_PJ)
-
-
 def ppo_passes(steps: int = PPO_STEPS, epochs: int = PPO_EPOCHS) -> tuple[int, int]:
     """(forward, backward) passes per network of PPO: one forward per collected step, then ``epochs``
     forward+backward sweeps over the data (1e6 steps, 25 epochs: 2.6e7 and 2.5e7, the paper's table)."""
@@ -98,11 +92,6 @@ def first_generation_at(returns: Sequence[float], level: float) -> int | None:
         if value >= level:
             return generation
     return None
-
-
-def steps_per_generation(population: int, episode_steps: int, candidates: int = 10, episodes: int = 10) -> int:
-    """The paper's nominal A = N*T + candidates*episodes*T (3e5 for N=200, T=1000)."""
-    return population * episode_steps + candidates * episodes * episode_steps
 
 
 def data_efficiency(generations: int, steps_per_gen: float, ppo_steps: int = PPO_STEPS) -> tuple[float, float]:

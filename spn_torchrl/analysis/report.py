@@ -129,8 +129,8 @@ def inference_energy(runs: Sequence[RunRecord], n: int, m: int) -> dict[str, Any
     rate = last_value(runs, "spike_rate")
     syn1, syn2 = last_value(runs, "synapses_l1"), last_value(runs, "synapses_l2")
     e_dpn = energy.e_dpn(n, m, hidden)
-    dense = energy.e_spn(n, m, rate, hidden)
-    masked = energy.e_spn_masked(syn1, syn2, rate) if not math.isnan(syn1 + syn2) else float("nan")
+    spn = energy.inference_energy(n, m, hidden, rate, syn1, syn2)  # NaN mask-aware where no synapse counts
+    dense, masked = spn["dense_pj"], spn["mask_aware_pj"]
     return {
         "hidden": hidden,
         "rate_per_sim_step": rate,
