@@ -25,8 +25,9 @@ class RunFileError(SpnError, OSError):
     """A file of a run could not be written: the message names the path and what was expected."""
 
 
-class RunInterrupted(SpnError):
-    """SIGINT or SIGTERM stopped a run; its checkpoint is consistent and it can be resumed."""
+class RunInterrupted(BaseException):
+    """SIGINT or SIGTERM stopped a run; its checkpoint is consistent and it can be resumed. A BaseException, as
+    KeyboardInterrupt is, so that no library's ``except Exception`` swallows it."""
 
     def __init__(self, signum: int) -> None:
         self.signum = signum

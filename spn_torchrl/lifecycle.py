@@ -192,19 +192,21 @@ def deferred_signals() -> Iterator[None]:
         yield
     finally:
         _critical -= 1
-    if _critical == 0 and _pending:
-        _raise(_pending.pop())
+    if _critical == 0:
+        _raise_pending()
 
 
-def _raise(signum: int) -> None:
-    raise RunInterrupted(signum)
+def _raise_pending() -> None:
+    if _pending:
+        raise RunInterrupted(_pending[0])
 
 
 def _handler(signum: int, frame: Any) -> None:
-    if _critical:
-        _pending.append(signum)
-    else:
-        _raise(signum)
+    # kept pending as well: Python drops an exception raised where the signal lands in a finaliser or weakref
+    # callback, and the next recorded row or checkpoint raises it then
+    _pending.append(signum)
+    if not _critical:
+        _raise_pending()
 
 
 @contextlib.contextmanager
