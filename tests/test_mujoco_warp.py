@@ -6,6 +6,10 @@ Warp's float32 cannot reproduce MuJoCo C's float64 bit for bit, so the tests sta
   itself by a factor of about 10 every 5 env steps (0.25 s of simulated time), so the bound on Warp's
   difference grows at that rate from 3e-5 (observation) and 3e-6 (reward) at step 0.
 - HumanoidStandup: Warp uses the Newton solver (it has no PGS), so its reference is MuJoCo C with Newton.
+- Episode returns (slow): for HalfCheetah the per-genome differences are float32 chaos, of the same size as
+  MuJoCo C's own from a float32-rounded start (paired standard deviation about 10 over 100 steps), so the test
+  is statistical: the paired t statistic below 3.5 (two-sided 1% for 7 degrees of freedom) and the difference of
+  the mean returns below half the spread of the returns between genomes.
 
 ``SPN_WARP_DEVICE=cuda`` runs the same tests on a GPU (benchmarks/gpu_check.sh).
 """
@@ -21,8 +25,11 @@ import pytest
 import torch
 from tensordict import TensorDict
 
+from spn_torchrl.envs import task_spec
 from spn_torchrl.envs.mujoco import MujocoBatchEnv
 from spn_torchrl.errors import ConfigError
+from spn_torchrl.evaluation.rollout import PopulationEvaluator
+from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
 
 pytest.importorskip("mujoco_warp")
 from spn_torchrl.envs.mujoco_warp import MujocoWarpEnv, mujoco_warp_backend  # noqa: E402
@@ -167,3 +174,41 @@ def test_config_errors() -> None:
     if not torch.cuda.is_available():
         with pytest.raises(ConfigError, match="no CUDA device"):
             mujoco_warp_backend("Swimmer-v5", 2, device="cuda")
+
+
+def spn_and_genomes(env_id: str, count: int) -> tuple[PopulationSPN, torch.Tensor]:
+    spec = task_spec(env_id)
+    gen = torch.Generator().manual_seed(1)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, 64, gen)
+    spn = PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
+    return spn, torch.randn(count, spn.genome_size, generator=gen)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id,steps", [("HalfCheetah-v5", 100), ("HumanoidStandup-v5", 100)])
+def test_spn_returns_agree_statistically(env_id: str, steps: int) -> None:
+    """8 SPN genomes on 9 slots (an idle one) through PopulationEvaluator on both backends, seeds 123 + i.
+    HumanoidStandup's reference keeps Gymnasium's PGS: the difference includes Newton's."""
+    torch.set_num_threads(1)
+    spn, genomes = spn_and_genomes(env_id, 8)
+    results = {}
+    for name, env in (
+        ("warp", mujoco_warp_backend(env_id, 9, device=DEVICE)),
+        ("batch", MujocoBatchEnv(env_id, 9)),
+    ):
+        evaluator = PopulationEvaluator(env, spn, steps)
+        results[name] = evaluator(genomes, 123)
+        evaluator.close()
+    warp, ref = results["warp"], results["batch"]
+    assert warp.returns.device.type == "cpu" and torch.equal(warp.steps, ref.steps) and warp.total_steps == 8 * steps
+    diff = (warp.returns - ref.returns).double()
+    t = diff.mean() / (diff.std() / len(diff) ** 0.5)
+    spread = ref.returns.double().std()
+    print(
+        f"{env_id}, {steps} steps: mean return warp {warp.returns.mean():.2f} mujoco_batch {ref.returns.mean():.2f}, "
+        f"paired t {t:.2f}, |mean diff| / between-genome std {diff.mean().abs() / spread:.3f}, "
+        f"paired diff std {diff.std():.3f}"
+    )
+    assert abs(t) < 3.5
+    assert diff.mean().abs() < 0.5 * spread
+    torch.testing.assert_close(warp.spikes, ref.spikes, rtol=0.05, atol=0)  # the same policies, near states
