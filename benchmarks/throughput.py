@@ -31,8 +31,9 @@ from spn_torchrl.envs import TASKS, task_spec
 from spn_torchrl.envs.mujoco import MujocoBatchEnv, batch_task
 from spn_torchrl.evaluation import machine_evaluator
 from spn_torchrl.evaluation.processes import ProcessEvaluator
+from spn_torchrl.snn import neurons
 from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
-from spn_torchrl.training import ga, neurons
+from spn_torchrl.training import ga
 
 
 def ceiling(env_id: str, population: int, threads: int, steps: int, repeats: int = 3) -> float:
