@@ -159,7 +159,9 @@ class MujocoWarpEnv(EnvBase):
         if self.task.standup:
             self._mjw.rne_postconstraint(self.wmodel, self.wdata)
 
-    def _physics(self) -> None:
+    def simulate(self) -> None:
+        """Advance every world by one env step with the controls in place, and nothing else (no reward, no
+        observation): what a benchmark of the physics alone times. Asynchronous on a CUDA device."""
         if self._graph is None:
             with self._wp.ScopedDevice(self.wp_device):
                 self._substeps()
@@ -202,7 +204,7 @@ class MujocoWarpEnv(EnvBase):
         if active is not None:
             for saved, live in zip(self._saved, self._state):
                 saved.copy_(live)
-        self._physics()
+        self.simulate()
         if task.standup:
             uph = self.qpos[:, 2] / self.model.opt.timestep
             quad_ctrl = task.ctrl_cost_weight * self.ctrl.square().sum(-1)
