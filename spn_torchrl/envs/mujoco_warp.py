@@ -12,6 +12,8 @@ uses Newton instead. Slot i's world is world i; a reset draws its state on the h
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import mujoco
@@ -162,15 +164,23 @@ class MujocoWarpEnv(EnvBase):
     def simulate(self) -> None:
         """Advance every world by one env step with the controls in place, and nothing else (no reward, no
         observation): what a benchmark of the physics alone times. Asynchronous on a CUDA device."""
-        if self._graph is None:
-            with self._wp.ScopedDevice(self.wp_device):
+        with self._after_torch():
+            if self._graph is None:
                 self._substeps()
-            return
-        wp = self._wp
-        # the graph runs on Warp's stream after the torch work that wrote the controls, and torch waits for it
-        self._stream.wait_stream(self._torch_stream, self._events[0])
-        wp.capture_launch(self._graph, stream=self._stream)
-        self._torch_stream.wait_stream(self._stream, self._events[1])
+            else:
+                self._wp.capture_launch(self._graph, stream=self._stream)
+
+    @contextlib.contextmanager
+    def _after_torch(self) -> Iterator[None]:
+        """Warp's launches in the block run on this device after the torch work queued so far (e.g. controls
+        written through the zero-copy views), and later torch work after them; on a CUDA device, by events
+        between Warp's stream and torch's, with no host synchronisation."""
+        with self._wp.ScopedDevice(self.wp_device):
+            if self._graph is not None:
+                self._stream.wait_stream(self._torch_stream, self._events[0])
+            yield
+            if self._graph is not None:
+                self._torch_stream.wait_stream(self._stream, self._events[1])
 
     def _observation(self) -> torch.Tensor:
         """Gymnasium's ``_get_obs`` of every world, float32 [P, n] (a new tensor)."""
@@ -257,11 +267,11 @@ class MujocoWarpEnv(EnvBase):
         index = torch.as_tensor(slots, device=dev)
         mask = torch.zeros(len(self._all), dtype=torch.bool, device=dev)
         mask[index] = True
-        with self._wp.ScopedDevice(self.wp_device):
+        with self._after_torch():
             mjw.reset_data(self.wmodel, self.wdata, reset=self._wp.from_torch(mask))
-            self.qpos[index] = torch.as_tensor(np.stack([q for q, _ in states]), dtype=torch.float32, device=dev)
-            self.qvel[index] = torch.as_tensor(np.stack([v for _, v in states]), dtype=torch.float32, device=dev)
-            # every world's derived fields from its state; the others' next step recomputes theirs
+        self.qpos[index] = torch.as_tensor(np.stack([q for q, _ in states]), dtype=torch.float32, device=dev)
+        self.qvel[index] = torch.as_tensor(np.stack([v for _, v in states]), dtype=torch.float32, device=dev)
+        with self._after_torch():  # every world's derived fields from its state; the others' next step redoes them
             mjw.forward(self.wmodel, self.wdata)
         if self.task.standup:
             self.cfrc_ext[index] = 0.0  # mj_resetData clears it and mj_forward does not compute it
