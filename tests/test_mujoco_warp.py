@@ -32,6 +32,7 @@ from spn_torchrl.evaluation.rollout import PopulationEvaluator
 from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
 
 pytest.importorskip("mujoco_warp")
+import spn_torchrl.envs.mujoco_warp as warp_module  # noqa: E402
 from spn_torchrl.envs.mujoco_warp import MujocoWarpEnv, mujoco_warp_backend  # noqa: E402
 
 DEVICE = os.environ.get("SPN_WARP_DEVICE", "cpu")
@@ -162,6 +163,17 @@ def test_time_limit_truncates_at_1000_steps(warp_env) -> None:
     assert not env.step_slots_torch(zeros)[3].any()
     terminated, truncated = env.step_slots_torch(zeros)[2:]
     assert truncated.all() and not terminated.any()
+
+
+def test_capacity_overflow_is_an_error(monkeypatch) -> None:
+    """Too small a contact and constraint capacity: Warp drops contacts, and the episode is refused."""
+    monkeypatch.setitem(warp_module.WARP_SIZES, "HalfCheetah-v5", warp_module.WarpSizes(nconmax=1, njmax=4))
+    env = mujoco_warp_backend("HalfCheetah-v5", 2, device=DEVICE)
+    env.reset(seed=[0, 1])
+    for _ in range(30):  # the cheetah settles on the floor with several contacts
+        env.step_slots_torch(torch.full((2, 6), 0.5, device=env.device))
+    with pytest.raises(RuntimeError, match="overflowed its per-world capacity"):
+        env.check_overflow()
 
 
 def test_config_errors() -> None:
