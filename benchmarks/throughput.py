@@ -11,11 +11,21 @@ evaluator (the population and the previous generation's elite re-evaluation in o
 (c) the paper's way, one Gymnasium env and one single-policy SPN call per step that computes the masks (as
 the authors' code did), on a short slice, and the same loop with masks computed once. The last line is
 ``ratio_to_ceiling=<x> speedup_vs_paper=<y>``.
+
+    python benchmarks/throughput.py --backend mujoco_warp --device cuda --env HumanoidStandup-v5 \
+        --populations 200,2000,20000 --episode-steps 1000
+
+prints, per population N (the gpu extra; --device cpu runs Warp's CPU backend, for tiny sizes): env steps/s of
+one GA generation on the device (N children and the top-10 x 10 re-evaluation in one rollout, then selection)
+and of its physics alone (the captured substeps of every world, random controls, no policy), the device memory
+(torch's peak allocation plus Warp's memory pool's peak), and the wall time of a paper-budget seed (3e7 env
+steps) at the generation's rate.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import resource
 import time
 from dataclasses import dataclass
@@ -30,10 +40,13 @@ from omegaconf import DictConfig, OmegaConf
 from spn_torchrl.config import LocalEvaluatorConfig
 from spn_torchrl.envs import TASKS, task_spec
 from spn_torchrl.envs.mujoco import MujocoBatchEnv, batch_task
+from spn_torchrl.envs.mujoco_warp import MujocoWarpEnv, mujoco_warp_backend, torch_device
 from spn_torchrl.evaluation import local_processes, machine_evaluator
 from spn_torchrl.evaluation.processes import ProcessEvaluator
+from spn_torchrl.evaluation.rollout import Episodes, Evaluator, PopulationEvaluator
+from spn_torchrl.snn import neurons
 from spn_torchrl.snn.policies import PopulationSPN, init_fixed_weights
-from spn_torchrl.training import ga, neurons
+from spn_torchrl.training import ga
 
 
 def ceiling(env_id: str, population: int, threads: int, steps: int, repeats: int = 3) -> float:
@@ -78,36 +91,150 @@ class Generation:
     worker_memory_mb: float  # summed peak resident memory of its worker processes
 
 
+def elite_slots(population: int) -> int:
+    """Slots of the previous generation's re-evaluation beside N children: the top 10 (fewer for N < 100) x 10."""
+    return min(10, population // 10) * 10
+
+
+@dataclass
+class Previous:
+    """What the untimed previous generation leaves: its genomes, elite candidates and the children to evaluate."""
+
+    population: int
+    parents: torch.Tensor
+    candidates: torch.Tensor
+    children: torch.Tensor
+    generator: torch.Generator
+
+
+def previous_generation(evaluator: Evaluator, spn: PopulationSPN, population: int) -> Previous:
+    """The untimed generation before the timed one, on ``evaluator`` (``population + elite_slots(population)``
+    slots)."""
+    gen = torch.Generator().manual_seed(0)
+    parents = ga.initial_population(population, spn.genome_size, 0.01, gen)
+    fitness = evaluator(parents, 1).returns
+    candidates = ga.elite_candidates(fitness, elite_slots(population) // 10)
+    children = ga.next_generation(parents, fitness, sigma=0.01, truncation=0.25, generator=gen)
+    return Previous(population, parents, candidates, children, gen)
+
+
+def timed_generation(evaluator: Evaluator, previous: Previous) -> tuple[Episodes, float]:
+    """One GA generation of SPEC.md as spn_torchrl.training.evolve runs it in the steady state: one rollout of the
+    N children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection. Returns the
+    rollout's episodes and the generation's seconds."""
+    population, k, episodes = previous.population, elite_slots(previous.population) // 10, 10
+    t0 = time.perf_counter()
+    genomes = torch.cat([previous.children, ga.reevaluation_genomes(previous.parents, previous.candidates, episodes)])
+    result = evaluator(genomes, 2)
+    if k:  # no re-evaluation below N = 10
+        ga.pick_elite(previous.candidates, result.part(population, population + k * episodes).returns.view(k, episodes))
+    fitness = result.part(0, population).returns
+    ga.elite_candidates(fitness, k)
+    ga.next_generation(previous.children, fitness, sigma=0.01, truncation=0.25, generator=previous.generator)
+    return result, time.perf_counter() - t0
+
+
 def generation(
     env_id: str, backend: str, population: int, threads: int, episode_steps: int, processes: int = 1
 ) -> Generation:
-    """One GA generation of SPEC.md as spn_torchrl.training.evolve runs it in the steady state: one rollout of the N
-    children and the previous generation's top 10 x 10 re-evaluation, elite pick, selection, on the evaluator
-    that ``evaluator.processes=processes`` builds. The physics-alone rate divides its steps by the longest
-    physics wall time of one shard (the shards' physics runs side by side)."""
+    """:func:`timed_generation` on the evaluator that ``evaluator.processes=processes`` builds. The physics-alone
+    rate divides its steps by the longest physics wall time of one shard (the shards' physics runs side by side)."""
     spn = make_spn(env_id)
-    gen = torch.Generator().manual_seed(0)
-    parents = ga.initial_population(population, spn.genome_size, 0.01, gen)
-    k, episodes = min(10, population // 10), 10
-    evaluator = machine_evaluator(spn, env_id, population + k * episodes, backend, threads, episode_steps, processes)
+    slots = population + elite_slots(population)
+    evaluator = machine_evaluator(spn, env_id, slots, backend, threads, episode_steps, processes)
     try:
-        fitness = evaluator(parents, 1).returns  # the previous generation, not timed
-        candidates = ga.elite_candidates(fitness, k)
-        children = ga.next_generation(parents, fitness, sigma=0.01, truncation=0.25, generator=gen)
+        previous = previous_generation(evaluator, spn, population)
         before = physics_seconds(evaluator)
-        t0 = time.perf_counter()
-        result = evaluator(torch.cat([children, ga.reevaluation_genomes(parents, candidates, episodes)]), 2)
-        ga.pick_elite(candidates, result.part(population, population + k * episodes).returns.view(k, episodes))
-        fitness = result.part(0, population).returns
-        ga.elite_candidates(fitness, k)
-        ga.next_generation(children, fitness, sigma=0.01, truncation=0.25, generator=gen)
-        seconds = time.perf_counter() - t0
+        result, seconds = timed_generation(evaluator, previous)
         after = physics_seconds(evaluator)
         memory = sum(evaluator.gather("peak_memory_mb")) if isinstance(evaluator, ProcessEvaluator) else 0.0
     finally:
         evaluator.close()
     physics = None if after is None else result.total_steps / max(a - b for a, b in zip(after, before))
     return Generation(result.total_steps / seconds, result.total_steps, physics, memory)
+
+
+PAPER_STEPS = 3e7  # env steps of one paper-budget seed (SPEC.md: G = 100 generations of A = 3e5)
+
+
+@dataclass
+class WarpGeneration:
+    population: int
+    slots: int
+    steps_per_s: float  # one GA generation on the device
+    physics_steps_per_s: float  # the captured substeps of every world alone
+    memory_mb: float | None  # device memory: torch's peak allocation + Warp's pool's peak (None on cpu)
+    build_s: float  # building the env (loading or compiling the kernels, capturing the graph)
+
+
+def synchronize(env: MujocoWarpEnv) -> None:
+    """Wait for the device's work (a no-op on cpu, where Warp and torch run synchronously)."""
+    if env.device.type == "cuda":
+        torch.cuda.synchronize(env.device)
+        env._wp.synchronize_device(env.wp_device)
+
+
+def physics_rate(env: MujocoWarpEnv, steps: int) -> float:
+    """Env steps/s of :meth:`MujocoWarpEnv.simulate` alone over every world, with fixed random controls."""
+    env.reset(seed=list(range(env.batch_size[0])))
+    low, high = env.action_spec.space.low, env.action_spec.space.high
+    gen = torch.Generator(device=env.device).manual_seed(0)
+    env.ctrl.copy_(low + (high - low) * torch.rand(env.ctrl.shape, generator=gen, device=env.device))
+    env.simulate()  # warm
+    synchronize(env)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        env.simulate()
+    synchronize(env)
+    return env.batch_size[0] * steps / (time.perf_counter() - t0)
+
+
+def warp_generation(
+    env_id: str, population: int, episode_steps: int, device: str, physics_steps: int
+) -> WarpGeneration:
+    """:func:`timed_generation` on a mujoco_warp env of N + elite_slots(N) worlds on ``device``, the device
+    evaluator, then :func:`physics_rate` on the same worlds."""
+    spn = make_spn(env_id)
+    slots = population + elite_slots(population)
+    cuda = device.startswith("cuda")
+    if cuda:
+        torch.cuda.reset_peak_memory_stats(device)
+    t0 = time.perf_counter()
+    env = mujoco_warp_backend(env_id, slots, device=device)
+    build = time.perf_counter() - t0
+    evaluator = PopulationEvaluator(env, spn, episode_steps)
+    try:
+        result, seconds = timed_generation(evaluator, previous_generation(evaluator, spn, population))
+        physics = physics_rate(env, physics_steps)
+        memory = None
+        if cuda:
+            wp = env._wp
+            pool = wp.get_mempool_used_mem_high(env.wp_device) if wp.is_mempool_enabled(env.wp_device) else 0
+            memory = (torch.cuda.max_memory_allocated(device) + pool) / 2**20
+    finally:
+        evaluator.close()
+    return WarpGeneration(population, slots, result.total_steps / seconds, physics, memory, build)
+
+
+def warp_table(env_id: str, populations: list[int], episode_steps: int, device: str, physics_steps: int) -> None:
+    """Print the mujoco_warp figures of each population size as a markdown table."""
+    device = str(torch_device(device))  # a clear error for a device this machine lacks
+    print(f"mujoco_warp on {device}, {env_id}, {episode_steps}-step episodes (env steps/s)")
+    print(
+        "| N (slots) | GA generation | physics alone | generation / physics | device memory (MB) | "
+        "paper-budget seed (3e7 steps) | env build (s) |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for population in populations:
+        g = warp_generation(env_id, population, episode_steps, device, physics_steps)
+        memory = "n/a (cpu)" if g.memory_mb is None else f"{g.memory_mb:,.0f}"
+        budget = PAPER_STEPS / g.steps_per_s
+        print(
+            f"| {g.population:,} ({g.slots:,}) | {g.steps_per_s:,.0f} | {g.physics_steps_per_s:,.0f} | "
+            f"{g.steps_per_s / g.physics_steps_per_s:.3f} | {memory} | {budget / 60:,.1f} min | {g.build_s:.1f} |",
+            flush=True,
+        )
+        gc.collect()  # free this size's worlds before the next one's
 
 
 def physics_seconds(evaluator) -> list[float] | None:
@@ -150,6 +277,14 @@ def peak_memory_mb() -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="HalfCheetah-v5")
+    parser.add_argument(
+        "--backend", default="mujoco_batch", choices=["mujoco_batch", "mujoco_warp"], help="the backend measured"
+    )
+    parser.add_argument("--device", default="cuda", help="mujoco_warp: cpu, cuda or cuda:<index>")
+    parser.add_argument(
+        "--populations", default="200,2000,20000", help="mujoco_warp: comma-separated population sizes N"
+    )
+    parser.add_argument("--physics-steps", type=int, default=100, help="mujoco_warp: env steps of the physics run")
     parser.add_argument("--population", type=int, default=200)
     parser.add_argument(
         "--processes", type=int, help="evaluator processes (evaluator.processes; default: train.py's for the task)"
@@ -165,6 +300,10 @@ def main() -> None:
     )
     args = parser.parse_args()
     torch.set_num_threads(1)
+    if args.backend == "mujoco_warp":
+        populations = [int(n) for n in args.populations.split(",")]
+        warp_table(args.env, populations, args.episode_steps, args.device, args.physics_steps)
+        return
     task = task_config(args.env)
     args.threads = args.threads or task.get("threads", 1)
     slots = args.population + 100

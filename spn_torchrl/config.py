@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -22,7 +23,7 @@ from spn_torchrl.errors import ConfigError
 GENOMES = ("connections", "weights")
 POLICIES = ("dpn", "spn")
 SURROGATES = ("fast_sigmoid", "atan")
-BACKENDS = ("gymnasium", "mujoco_batch", "cartpole_batch")  # envs.BACKENDS implements each
+BACKENDS = ("gymnasium", "mujoco_batch", "cartpole_batch", "mujoco_warp")  # envs.BACKENDS implements each
 LOGGERS = ("csv", "wandb", "none")
 WANDB_MODES = ("auto", "online", "offline", "disabled")
 MAX_SIZE = 100_000  # populations, generations, widths: what a 2-core machine can hold at all
@@ -197,6 +198,7 @@ class EnvConfig:
     id: str = MISSING  # a Gymnasium id with a flat Box observation
     backend: str = "gymnasium"
     threads: int = 1  # mujoco_batch: physics threads of each env (the other backends step in one thread)
+    device: str = "cpu"  # mujoco_warp: "cpu", "cuda" or "cuda:<index>" (the other backends run on the CPU)
 
     def validate(self, at: str = "env") -> None:
         _check(isinstance(self.name, str) and bool(self.name), f"{at}.name", self.name, "a non-empty name")
@@ -208,6 +210,14 @@ class EnvConfig:
             f"{at}.threads",
             self.threads,
             f"1 for env.backend={self.backend} (only mujoco_batch runs physics threads)",
+        )
+        device_ok = isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None
+        _check(device_ok, f"{at}.device", self.device, "cpu, cuda or cuda:<index>")
+        _check(
+            self.device == "cpu" or self.backend == "mujoco_warp",
+            f"{at}.device",
+            self.device,
+            f"cpu for env.backend={self.backend} (only mujoco_warp runs on a device)",
         )
 
 
@@ -307,6 +317,13 @@ class RunConfig:
                 f"local for algo={self.algo.name} (Ray actors evaluate GA populations; PPO trains one policy here)",
             )
             _int_in("evaluator.num_actors", self.evaluator.num_actors, 1, self.algo.population)
+        if self.env.backend == "mujoco_warp":
+            _check(
+                isinstance(self.evaluator, LocalEvaluatorConfig) and self.evaluator.processes in (None, 1),
+                "evaluator",
+                self.evaluator.name,
+                "local with evaluator.processes 1 or null for env.backend=mujoco_warp (one device holds every world)",
+            )
 
     @property
     def is_ga(self) -> bool:

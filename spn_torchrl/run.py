@@ -12,7 +12,8 @@ from omegaconf import DictConfig
 
 from spn_torchrl.config import GAConfig, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
-from spn_torchrl.errors import RunInterrupted
+from spn_torchrl.envs.mujoco_warp import torch_device
+from spn_torchrl.errors import RunInterrupted, require
 from spn_torchrl.lifecycle import resume_hint, signals_interrupt
 from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.training.evolve import evolve
@@ -44,6 +45,9 @@ def check(cfg: RunConfig) -> None:
     backend steps it."""
     task_spec(cfg.env.id)
     check_backend(cfg.env.backend, cfg.env.id)
+    if cfg.env.backend == "mujoco_warp":
+        require("mujoco_warp", "gpu")
+        torch_device(cfg.env.device)  # a CUDA device this machine has
 
 
 def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[str, Any]:

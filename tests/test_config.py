@@ -106,6 +106,12 @@ RULES = [
     (["logger.backend=tensorboard"], "logger.backend must be one of 'csv', 'wandb', 'none'"),
     (["logger.mode=maybe"], "logger.mode must be one of 'auto', 'online', 'offline', 'disabled'"),
     (["torch_threads=0"], "torch_threads must be an integer in [1, 256], got 0"),
+    (["env.device=tpu"], "env.device must be cpu, cuda or cuda:<index>, got 'tpu'"),
+    (["env.device=cuda"], "env.device must be cpu for env.backend=cartpole_batch"),
+    (
+        ["env=halfcheetah", "env.backend=mujoco_warp", "evaluator.processes=2"],
+        "evaluator must be local with evaluator.processes 1 or null for env.backend=mujoco_warp",
+    ),
 ]
 
 
@@ -123,6 +129,7 @@ def test_each_bad_value_is_one_sentence_naming_its_field(make_config, overrides,
         (["env.id=Nope-v0"], "env.id: unknown Gymnasium environment 'Nope-v0'"),
         (["env=cartpole", "env.backend=mujoco_batch"], "env.backend=mujoco_batch steps HalfCheetah-v5"),
         (["env=halfcheetah", "env.backend=cartpole_batch"], "env.backend=cartpole_batch steps CartPole-v1 only"),
+        (["env=swimmer", "env.backend=mujoco_warp", "env.device=cuda:7"], "env.device=cuda:7: "),
     ],
 )
 def test_task_and_backend_are_checked_before_any_env_starts(make_config, overrides, sentence):

@@ -89,7 +89,9 @@ def test_resume_with_another_task_fails_clearly(tmp_path):
     proc = run_train(tmp_path, "env=swimmer", *TINY, "resume=true", check=False)
     assert proc.returncode != 0
     last = proc.stderr.strip().splitlines()[-1]
-    assert last.startswith("error:") and "env_id 'CartPole-v1' -> 'Swimmer-v5'" in last and "Traceback" not in proc.stderr
+    assert (
+        last.startswith("error:") and "env_id 'CartPole-v1' -> 'Swimmer-v5'" in last and "Traceback" not in proc.stderr
+    )
 
 
 def test_corrupt_checkpoint_fails_clearly(tmp_path):

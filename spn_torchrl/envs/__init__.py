@@ -22,6 +22,7 @@ from torchrl.envs import (
 from spn_torchrl.envs.cartpole import ENV_ID as CARTPOLE_ID
 from spn_torchrl.envs.cartpole import cartpole_batch_backend
 from spn_torchrl.envs.mujoco import BATCH_TASKS, mujoco_batch_backend
+from spn_torchrl.envs.mujoco_warp import WARP_SIZES, mujoco_warp_backend
 from spn_torchrl.errors import ConfigError
 
 TASKS = {
@@ -89,16 +90,19 @@ def gymnasium_backend(env_id: str, num_envs: int, threads: int = 1) -> EnvBase:
 
 @dataclass(frozen=True)
 class Backend:
-    """An env backend: its factory ``(env_id, num_envs, threads) -> env`` and the ids it supports (None: any)."""
+    """An env backend: its factory ``(env_id, num_envs, threads[, device]) -> env``, the ids it supports (None:
+    any) and whether it runs on ``env.device`` (else on the CPU)."""
 
     factory: Callable[..., EnvBase]
     env_ids: tuple[str, ...] | None = None
+    on_device: bool = False
 
 
 BACKENDS: dict[str, Backend] = {
     "gymnasium": Backend(gymnasium_backend),
     "mujoco_batch": Backend(mujoco_batch_backend, tuple(BATCH_TASKS)),
     "cartpole_batch": Backend(cartpole_batch_backend, (CARTPOLE_ID,)),
+    "mujoco_warp": Backend(mujoco_warp_backend, tuple(WARP_SIZES), on_device=True),  # the gpu extra
 }
 
 
@@ -113,10 +117,16 @@ def check_backend(backend: str, env_id: str) -> None:
         )
 
 
-def make_batched_env(env_id: str, num_envs: int, *, backend: str = "gymnasium", threads: int = 1) -> EnvBase:
+def make_batched_env(
+    env_id: str, num_envs: int, *, backend: str = "gymnasium", threads: int = 1, device: str = "cpu"
+) -> EnvBase:
     """One TorchRL env of ``num_envs`` copies of a task from ``backend``, without transforms (what
     :class:`~spn_torchrl.evaluation.rollout.PopulationEvaluator` steps); discrete actions are indices."""
     check_backend(backend, env_id)
+    if BACKENDS[backend].on_device:
+        return BACKENDS[backend].factory(env_id, num_envs, threads, device)
+    if device != "cpu":
+        raise ConfigError(f"env.device={device} needs env.backend=mujoco_warp; env.backend={backend} runs on the CPU")
     return BACKENDS[backend].factory(env_id, num_envs, threads)
 
 

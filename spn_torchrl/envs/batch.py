@@ -58,7 +58,7 @@ class BatchEnv(EnvBase):
         """Give slot i the generator that ``reset(seed=seeds[i])`` of the Gymnasium task makes."""
         if len(seeds) != len(self._all):
             raise ValueError(f"expected {len(self._all)} seeds, one per slot, got {len(seeds)}")
-        self._rngs = [np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(s)))) for s in seeds]
+        self._rngs = [slot_generator(s) for s in seeds]
 
     def _restart(self, ids: np.ndarray | None) -> None:
         self._elapsed[rows(ids)] = 0
@@ -70,7 +70,7 @@ class BatchEnv(EnvBase):
         every slot, as ``reset(seed=[...])`` of a Gymnasium vector env does."""
         if seed is not None:
             self._seed_slots(seed)
-        ids = _selected(None if tensordict is None else tensordict.get("_reset", None))
+        ids = selected_slots(None if tensordict is None else tensordict.get("_reset", None))
         if ids is None or len(ids):
             self._restart(ids)
         return TensorDict(
@@ -101,7 +101,7 @@ class BatchEnv(EnvBase):
         )
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        ids = _selected(tensordict.get("_step", None))
+        ids = selected_slots(tensordict.get("_step", None))
         action = tensordict.get("action").detach().numpy()
         obs, reward, terminated, truncated = self.step_slots(action[rows(ids)], ids)
         terminated, truncated = terminated.unsqueeze(-1), truncated.unsqueeze(-1)
@@ -117,14 +117,19 @@ class BatchEnv(EnvBase):
         )
 
 
+def slot_generator(seed: int) -> np.random.Generator:
+    """The generator of a slot seeded with ``seed``: what ``reset(seed=seed)`` of a Gymnasium task makes."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed))))
+
+
 def rows(ids: np.ndarray | None) -> slice | np.ndarray:
     """An index of the slots ``ids`` (None: all) into arrays with one row per slot."""
     return slice(None) if ids is None else ids
 
 
-def _selected(mask: torch.Tensor | None) -> np.ndarray | None:
-    """The slot indices a TorchRL ``_step``/``_reset`` mask selects; None for all (or no mask)."""
+def selected_slots(mask: torch.Tensor | None) -> np.ndarray | None:
+    """The slot indices a TorchRL ``_step``/``_reset`` mask (on any device) selects; None for all (or no mask)."""
     if mask is None:
         return None
-    mask = mask.reshape(-1).numpy()
+    mask = mask.reshape(-1).cpu().numpy()
     return None if mask.all() else np.flatnonzero(mask)

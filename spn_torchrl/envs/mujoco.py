@@ -45,14 +45,33 @@ IMPACT_COST_WEIGHT = 0.5e-6
 IMPACT_COST_MAX = 10.0
 
 
-def batch_task(env_id: str) -> BatchTask:
-    """The task definition of a supported id; ConfigError for any other."""
+def batch_task(env_id: str, backend: str = "mujoco_batch") -> BatchTask:
+    """The task definition of a supported id; ConfigError naming ``backend`` for any other."""
     if env_id not in BATCH_TASKS:
         raise ConfigError(
-            f"env.backend=mujoco_batch supports {', '.join(BATCH_TASKS)}, not {env_id!r}: "
+            f"env.backend={backend} supports {', '.join(BATCH_TASKS)}, not {env_id!r}: "
             "use env.backend=gymnasium for other tasks"
         )
     return BATCH_TASKS[env_id]
+
+
+def observation_size(model: mujoco.MjModel, task: BatchTask) -> int:
+    """Length of Gymnasium v5's observation of a task."""
+    size = model.nq - task.skipped_qpos + model.nv
+    if task.standup:
+        size += (model.nbody - 1) * (10 + 6 + 6) + (model.nv - 6)
+    return size
+
+
+def initial_state(task: BatchTask, model: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Gymnasium v5's reset draw of a task from a slot's generator: qpos [nq] and qvel [nv], float64."""
+    scale = task.reset_noise_scale
+    qpos = model.qpos0 + rng.uniform(low=-scale, high=scale, size=model.nq)
+    if task.qvel_noise == "normal":
+        qvel = np.zeros(model.nv) + scale * rng.standard_normal(model.nv)
+    else:
+        qvel = np.zeros(model.nv) + rng.uniform(low=-scale, high=scale, size=model.nv)
+    return qpos, qvel
 
 
 class MujocoBatchEnv(BatchEnv):
@@ -68,13 +87,11 @@ class MujocoBatchEnv(BatchEnv):
         low = torch.as_tensor(m.actuator_ctrlrange[:, 0], dtype=torch.float32)
         high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
         action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
-        super().__init__(num_envs, self._obs_size(), action_spec, task.max_episode_steps)
+        super().__init__(num_envs, observation_size(m, task), action_spec, task.max_episode_steps)
         # a persistent batch keeps each simulation's MjData, whose contact forces HumanoidStandup needs
         self.batch = Batch(m, num_envs, nthread=num_threads, persistent=task.standup)
         self.qpos, self.qvel, self.ctrl = self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl")
         self.dt = m.opt.timestep * task.frame_skip
-        self.init_qpos = m.qpos0.copy()
-        self.init_qvel = np.zeros(m.nv)
         if task.standup:
             self.cinert, self.cvel = self.batch.bind("cinert"), self.batch.bind("cvel")
             self.qfrc_actuator = self.batch.bind("qfrc_actuator")
@@ -82,13 +99,6 @@ class MujocoBatchEnv(BatchEnv):
             self._scratch = mujoco.MjData(m)
         self._x_before = np.zeros(p)
         self.physics_seconds = 0.0  # wall time inside the batched physics call (benchmarks read it)
-
-    def _obs_size(self) -> int:
-        m, task = self.model, self.task
-        size = m.nq - task.skipped_qpos + m.nv
-        if task.standup:
-            size += (m.nbody - 1) * (10 + 6 + 6) + (m.nv - 6)
-        return size
 
     def _write_obs(self, ids: np.ndarray | None) -> None:
         """Gymnasium's ``_get_obs`` for the rows ``ids`` (None: all) into the observation buffer."""
@@ -117,16 +127,10 @@ class MujocoBatchEnv(BatchEnv):
             self.cfrc_ext[sim] = data.cfrc_ext
 
     def _reset_slots(self, ids: np.ndarray | None) -> None:
-        m, task = self.model, self.task
-        scale = task.reset_noise_scale
+        task = self.task
         self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
         for sim in self._all[rows(ids)]:
-            rng = self._rngs[sim]
-            self.qpos[sim] = self.init_qpos + rng.uniform(low=-scale, high=scale, size=m.nq)
-            if task.qvel_noise == "normal":
-                self.qvel[sim] = self.init_qvel + scale * rng.standard_normal(m.nv)
-            else:
-                self.qvel[sim] = self.init_qvel + rng.uniform(low=-scale, high=scale, size=m.nv)
+            self.qpos[sim], self.qvel[sim] = initial_state(task, self.model, self._rngs[sim])
         self.batch.forward(ids)
         if task.standup:
             self.cfrc_ext[rows(ids)] = 0.0  # mj_resetData clears it and mj_forward does not compute it

@@ -22,11 +22,13 @@ from spn_torchrl.snn.policies import PopulationSPN
 log = logging.getLogger("spn_torchrl")
 
 
-def local_processes(evaluator: LocalEvaluatorConfig, threads: int, slots: int) -> int:
+def local_processes(evaluator: LocalEvaluatorConfig, threads: int, slots: int, device: str = "cpu") -> int:
     """Worker processes of the local evaluator: ``evaluator.processes``, else the cores this process may use
-    divided by the physics threads of each env (at most one per slot)."""
+    divided by the physics threads of each env (at most one per slot); one where a device steps every slot."""
     if evaluator.processes is not None:
         return min(evaluator.processes, slots)
+    if device != "cpu":
+        return 1
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return max(1, min(cores // threads, slots))
 
@@ -43,9 +45,10 @@ def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evalu
         cfg.env.backend,
         cfg.env.threads,
         spec.max_episode_steps,
-        local_processes(evaluator, cfg.env.threads, slots),
+        local_processes(evaluator, cfg.env.threads, slots, cfg.env.device),
         evaluator.start_timeout_s,
         evaluator.call_timeout_s,
+        cfg.env.device,
     )
 
 
@@ -59,6 +62,7 @@ def machine_evaluator(
     processes: int = 1,
     start_timeout_s: float = 300.0,
     call_timeout_s: float | None = CALL_TIMEOUT_S,
+    device: str = "cpu",
 ) -> Evaluator:
     """``slots`` copies of a task on this machine: one batched env in this process, or, with ``processes``
     > 1, one shard of them in each worker process (:mod:`spn_torchrl.evaluation.processes`), each call within
@@ -72,9 +76,8 @@ def machine_evaluator(
         log.warning(
             "evaluator.processes=%d: %s; evaluating in this process (same episodes, one core)", processes, blocker
         )
-    return PopulationEvaluator(
-        make_batched_env(env_id, slots, backend=backend, threads=threads), spn, max_episode_steps
-    )
+    env = make_batched_env(env_id, slots, backend=backend, threads=threads, device=device)
+    return PopulationEvaluator(env, spn, max_episode_steps)
 
 
 def ray_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:

@@ -1,4 +1,4 @@
-"""Population evaluation in worker processes on this machine: ``env.processes`` > 1.
+"""Population evaluation in worker processes on this machine: ``evaluator.processes`` > 1.
 
 Each worker process holds one shard's batched env and SPN (:class:`~spn_torchrl.evaluation.shards.ShardWorker`, built
 once) and runs its episodes to their end on its own. One shard's SPN and env bookkeeping run while the other

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import logging
 from dataclasses import dataclass
 from typing import Protocol
@@ -12,6 +13,7 @@ from tensordict import TensorDictBase
 from torchrl.envs import EnvBase
 
 from spn_torchrl.envs.batch import BatchEnv
+from spn_torchrl.envs.mujoco_warp import MujocoWarpEnv
 from spn_torchrl.seeds import slot_seeds
 from spn_torchrl.snn.policies import PopulationSPN
 
@@ -49,11 +51,18 @@ class PopulationEvaluator:
     every result. A batch backend (:class:`~spn_torchrl.envs.batch.BatchEnv`) is stepped
     through :meth:`~spn_torchrl.envs.batch.BatchEnv.step_slots`, the core of its TorchRL ``step`` without the
     TensorDicts, on the slots still running; any other env through TorchRL's ``step_and_maybe_reset``, with the
-    ``"_step"`` mask once some slots are idle.
+    ``"_step"`` mask once some slots are idle. A device env (:class:`~spn_torchrl.envs.mujoco_warp.MujocoWarpEnv`)
+    runs with a copy of the SPN on its device, and the loop keeps its sums and masks there
+    (:meth:`_run_on_device`); the episodes come back on the CPU.
     """
+
+    STOP_CHECK_EVERY = 10  # device loop: env steps between the host reads that stop it once every slot is done
 
     def __init__(self, env: EnvBase, spn: PopulationSPN, max_episode_steps: int) -> None:
         self.env = env
+        self.on_device = isinstance(env, MujocoWarpEnv)
+        if self.on_device and spn.w1.device != env.device:
+            spn = copy.deepcopy(spn).to(env.device)  # the caller's SPN stays where it is
         self.spn = spn
         self.shape = env.batch_size
         self.size = env.batch_size.numel()
@@ -70,6 +79,8 @@ class PopulationEvaluator:
         idle = np.zeros(self.size - count, dtype=np.int64)  # any seed: idle slots are never counted
         seeds = np.concatenate([slot_seeds(seeds, count), idle])
         self.spn.set_genomes(genomes)
+        if self.on_device:
+            return self._run_on_device(count, seeds)
         active = torch.arange(self.size) < count
         returns = torch.zeros(self.size)
         steps = torch.full((self.size,), self.max_episode_steps)  # until a slot's episode ends earlier
@@ -93,6 +104,29 @@ class PopulationEvaluator:
                     break
         self._td = None
         return Episodes(returns[:count], steps[:count], spikes)
+
+    def _run_on_device(self, count: int, seeds: np.ndarray) -> Episodes:
+        """The episode loop on the env's device: the same sums in the same order as the CPU loop, with no
+        host round trip per step; every :attr:`STOP_CHECK_EVERY` steps one read of the active mask stops the
+        loop once every slot is done (the extra steps of finished slots are never counted)."""
+        env, dev = self.env, self.env.device
+        active = torch.arange(self.size, device=dev) < count
+        returns = torch.zeros(self.size, device=dev)
+        steps = torch.full((self.size,), self.max_episode_steps, device=dev)
+        spikes = torch.zeros(count, device=dev)
+        obs = env.reset(seed=seeds.tolist()).get("observation")
+        for step in range(1, self.max_episode_steps + 1):
+            action, hidden_spikes = self.spn(obs[:count])
+            spikes += hidden_spikes * active[:count]
+            obs, reward, terminated, truncated = env.step_slots_torch(action, active)
+            returns += reward * active  # float32 sums in step order, as the CPU loop
+            finished = (terminated | truncated) & active
+            steps.masked_fill_(finished, step)
+            active &= ~finished
+            if step % self.STOP_CHECK_EVERY == 0 and not bool(active.any()):
+                break
+        env.check_overflow(count)
+        return Episodes(returns[:count].cpu(), steps[:count].cpu(), spikes.cpu())
 
     def _step(
         self, action: torch.Tensor, active: torch.Tensor | None

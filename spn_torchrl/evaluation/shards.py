@@ -1,6 +1,6 @@
 """A population cut into contiguous shards, each evaluated by a worker that holds its own batched env.
 
-What the multi-process evaluators share (``env.processes`` on this machine, ``evaluator=ray`` on a
+What the multi-process evaluators share (``evaluator.processes`` on this machine, ``evaluator=ray`` on a
 cluster): the shard bounds, the genome payload a worker receives (connection genomes as packed mask bits) with
 each genome's env seed, so that every individual gets the episode the one-process evaluator gives it, and
 :class:`ShardWorker`.
