@@ -103,18 +103,30 @@ class BatchEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         ids = selected_slots(tensordict.get("_step", None))
         action = tensordict.get("action").detach().numpy()
-        obs, reward, terminated, truncated = self.step_slots(action[rows(ids)], ids)
-        terminated, truncated = terminated.unsqueeze(-1), truncated.unsqueeze(-1)
-        return TensorDict(
-            {
-                "observation": obs,
-                "reward": reward.unsqueeze(-1),
-                "done": terminated | truncated,
-                "terminated": terminated,
-                "truncated": truncated,
-            },
-            batch_size=self.batch_size,
-        )
+        return step_output(*self.step_slots(action[rows(ids)], ids), self.batch_size)
+
+
+def step_output(
+    obs: torch.Tensor,
+    reward: torch.Tensor,
+    terminated: torch.Tensor,
+    truncated: torch.Tensor,
+    batch_size: torch.Size,
+    device: torch.device | None = None,
+) -> TensorDict:
+    """What a TorchRL ``_step`` returns for every slot's observation [P, n], reward [P] and flags [P]."""
+    terminated, truncated = terminated.unsqueeze(-1), truncated.unsqueeze(-1)
+    return TensorDict(
+        {
+            "observation": obs,
+            "reward": reward.unsqueeze(-1),
+            "done": terminated | truncated,
+            "terminated": terminated,
+            "truncated": truncated,
+        },
+        batch_size=batch_size,
+        device=device,
+    )
 
 
 def slot_generator(seed: int) -> np.random.Generator:

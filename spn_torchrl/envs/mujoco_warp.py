@@ -24,7 +24,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from spn_torchrl.envs.batch import rows, selected_slots, slot_generator
+from spn_torchrl.envs.batch import rows, selected_slots, slot_generator, step_output
 from spn_torchrl.envs.mujoco import (
     IMPACT_COST_MAX,
     IMPACT_COST_WEIGHT,
@@ -297,19 +297,7 @@ class MujocoWarpEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         mask = tensordict.get("_step", None)
         active = None if mask is None else mask.reshape(-1).to(self.device)
-        obs, reward, terminated, truncated = self.step_slots_torch(tensordict.get("action"), active)
-        terminated, truncated = terminated.unsqueeze(-1), truncated.unsqueeze(-1)
-        return TensorDict(
-            {
-                "observation": obs,
-                "reward": reward.unsqueeze(-1),
-                "done": terminated | truncated,
-                "terminated": terminated,
-                "truncated": truncated,
-            },
-            batch_size=self.batch_size,
-            device=self.device,
-        )
+        return step_output(*self.step_slots_torch(tensordict.get("action"), active), self.batch_size, self.device)
 
 
 def mujoco_warp_backend(env_id: str, num_envs: int, threads: int = 1, device: str = "cpu") -> EnvBase:
