@@ -125,3 +125,9 @@ def test_export_errors_are_one_sentence(cartpole_run, tmp_path):
     assert done.returncode != 0 and "does not exist" in done.stderr and "Traceback" not in done.stderr
     done = export(cartpole_run, tmp_path / "x.nir", "--generation", "0")
     assert done.returncode != 0 and "--generation must be in [1, 2]" in done.stderr
+
+
+def test_export_to_a_directory_is_one_sentence(cartpole_run, tmp_path):
+    done = export(cartpole_run, tmp_path)
+    assert done.returncode == 1 and "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1] == f"error: {tmp_path} is a directory, expected a file"

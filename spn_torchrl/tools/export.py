@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from spn_torchrl.errors import SpnError, require
+from spn_torchrl.records import run_file_error
 from spn_torchrl.tools.elite import Elite, load_elite
 
 DT = 1e-3  # seconds per simulation step (any positive value works: tau scales with it)
@@ -99,8 +100,11 @@ def export(run_dir: str | Path, out: str | Path, fmt: str = "nir", generation: i
     elite = load_elite(run_dir, generation)
     graph = to_nir(elite)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    nir.write(out, graph)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        nir.write(out, graph)
+    except OSError as err:  # a directory at ``out``, a read-only or full disk: one sentence naming the path
+        raise run_file_error(out, err) from None
     return out
 
 
