@@ -78,6 +78,7 @@ def test_refusals_without_commit_bad_commit_or_too_large(tmp_path):
         collect_run(tmp_path / "nothing", tmp_path / "into", COMMIT)
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_cli_collects_the_finished_and_names_the_refused(tmp_path):
     good = finished(tmp_path)
     bad = write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "conn_ga", 1, [1.0], generations=5)

@@ -100,6 +100,7 @@ def test_an_episode_depends_on_its_seed_not_on_its_slot(env_id, backend):
         assert torch.equal(getattr(c, field), getattr(a, field)[order[:2]])
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 @pytest.mark.parametrize(
     "env_id,backend,processes", [("CartPole-v1", "cartpole_batch", 3), ("Swimmer-v5", "mujoco_batch", 2)]
 )
@@ -125,6 +126,7 @@ def test_worker_processes_give_the_one_process_episodes(env_id, backend, process
     assert not any(p.is_alive() for p in workers)
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_a_worker_process_that_cannot_build_its_env_raises_its_error():
     spec, spn, _, _ = setup("CartPole-v1", 4, 1.0)
     with pytest.raises(ConfigError, match="env.threads must be 1"):
@@ -153,6 +155,7 @@ def test_batch_backends_stepped_directly_give_torchrls_step_episodes(env_id, bac
         through_torchrl.close()
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_a_worker_process_killed_is_a_clear_error():
     spec, spn, genomes, _ = setup("CartPole-v1", 6, 1.0)
     evaluator = ProcessEvaluator(spn, "CartPole-v1", 6, "cartpole_batch", 1, spec.max_episode_steps, 2)
@@ -164,6 +167,7 @@ def test_a_worker_process_killed_is_a_clear_error():
         evaluator.close()
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 @pytest.mark.parametrize("request_size", ["small", "larger than its pipe"])
 def test_a_stopped_worker_process_is_a_clear_error_within_the_call_timeout(request_size):
     spec, spn, genomes, _ = setup("CartPole-v1", 6, 1.0)

@@ -71,6 +71,7 @@ def test_unusable_files_are_clear_errors(tmp_path):
         replay(path, "Swimmer-v5", episodes=1)
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_cli_prints_each_seed_and_the_mean(tmp_path):
     path = tmp_path / "CartPole-v1_SPN_Connections_gen100_elites.npz"
     write_npz(path)

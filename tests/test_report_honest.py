@@ -27,6 +27,7 @@ def report_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_a_missing_path_is_an_error_naming_it(tmp_path):
     missing = tmp_path / "mulitrun"  # mistyped
     with pytest.raises(SpnError, match="mulitrun does not exist"):
@@ -72,6 +73,7 @@ def test_with_no_finished_run_the_curve_covers_the_generations_all_reached(tmp_p
     assert "**conn_ga: no run reached its budget**" in md and "over the 3 generations all of them" in md
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_cli_names_the_runs_that_stopped_early(tmp_path):
     cartpole(tmp_path, 0, [5.0, 6.0])
     cartpole(tmp_path, 1, [5.0], generations=2)

@@ -113,6 +113,7 @@ def test_a_deliberately_shortened_budget_is_labelled(result):
     assert "Connections-GA: (deliberately shortened budget: 20 of the paper's 100 generations)." in md
 
 
+@pytest.mark.slow  # processes or a CLI in a subprocess
 def test_cli_writes_the_reproduction_readme(evidence, tmp_path):
     cmd = [sys.executable, "-m", "spn_torchrl.report", str(evidence), "--reproduction", "--out", str(tmp_path)]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
