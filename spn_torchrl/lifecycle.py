@@ -123,6 +123,7 @@ def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]
     state = checkpoint.load(ckpt, expected={"format": meta["format"]})
     if state["meta"] != meta:
         changed = [f"{k} {state['meta'].get(k)!r} -> {v!r}" for k, v in meta.items() if state["meta"].get(k) != v]
+        _restore_hydra_config(run_dir, state["config"])
         raise CheckpointError(
             f"{ckpt} belongs to another task or network ({', '.join(changed)}): use a new run directory"
         )
