@@ -92,6 +92,7 @@ def test_resume_with_another_task_fails_clearly(tmp_path):
     assert (
         last.startswith("error:") and "env_id 'CartPole-v1' -> 'Swimmer-v5'" in last and "Traceback" not in proc.stderr
     )
+    assert "CartPole-v1" in (tmp_path / ".hydra" / "config.yaml").read_text()  # the run's own record stays
 
 
 def test_corrupt_checkpoint_fails_clearly(tmp_path):
