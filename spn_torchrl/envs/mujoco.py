@@ -1,13 +1,17 @@
-"""A TorchRL env of P copies of a Gymnasium v5 MuJoCo task, stepped in one ``mujoco.batch.Batch`` call.
+"""TorchRL envs of P copies of a Gymnasium v5 MuJoCo task, stepped on C threads.
 
 Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup: observation, reward
 terms, reset distribution and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and
-masks as :class:`~spn_torchrl.envs.batch.BatchEnv`.
+masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. HalfCheetah and Swimmer step in one ``mujoco.batch.Batch``
+call; HumanoidStandup, whose observation and reward need ``mj_rnePostConstraint`` after every step, steps one
+``MjData`` per simulation on a thread pool (:class:`DataSimulations`), so that the call runs in place.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import mujoco
@@ -43,6 +47,7 @@ BATCH_TASKS: dict[str, BatchTask] = {
 }
 IMPACT_COST_WEIGHT = 0.5e-6
 IMPACT_COST_MAX = 10.0
+STANDUP_FIELDS = ("cinert", "cvel", "qfrc_actuator", "cfrc_ext")  # HumanoidStandup's observation beyond qpos, qvel
 
 
 def batch_task(env_id: str, backend: str = "mujoco_batch") -> BatchTask:
@@ -74,6 +79,88 @@ def initial_state(task: BatchTask, model: mujoco.MjModel, rng: np.random.Generat
     return qpos, qvel
 
 
+class BatchSimulations:
+    """P simulations in one ``mujoco.batch.Batch``: ``qpos``, ``qvel`` and ``ctrl`` are live [P, ...] views."""
+
+    def __init__(self, model: mujoco.MjModel, num_envs: int, threads: int) -> None:
+        self.batch = Batch(model, num_envs, nthread=threads)
+        self.qpos, self.qvel, self.ctrl = self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl")
+
+    def reset(self, ids: np.ndarray | None, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        """Gymnasium's reset of simulations ``ids`` (None: all) to the rows of ``qpos`` and ``qvel``."""
+        self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        self.qpos[rows(ids)], self.qvel[rows(ids)] = qpos, qvel
+        self.batch.forward(ids)
+
+    def step(self, ids: np.ndarray | None, nstep: int) -> float:
+        """``mj_step`` ``nstep`` times from ``ctrl``; returns the seconds of the physics."""
+        t0 = time.perf_counter()
+        self.batch.step(ids, nstep=nstep)
+        return time.perf_counter() - t0
+
+    def close(self) -> None:
+        pass
+
+
+class DataSimulations:
+    """P simulations, one ``MjData`` each, on ``threads`` threads: Gymnasium's ``mj_step`` then
+    ``mj_rnePostConstraint``, in place. ``qpos``, ``qvel`` and the ``fields`` are [P, ...] copies taken after
+    every call; ``ctrl`` [P, nu] is read at every step."""
+
+    def __init__(self, model: mujoco.MjModel, num_envs: int, threads: int, fields: tuple[str, ...]) -> None:
+        self.model = model
+        self.data = [mujoco.MjData(model) for _ in range(num_envs)]
+        names = ("qpos", "qvel", *fields)
+        for name in names:
+            setattr(self, name, np.zeros((num_envs, *getattr(self.data[0], name).shape)))
+        self.ctrl = np.zeros((num_envs, model.nu))
+        # (the array, the simulation's own field) pairs, views made once: they stay valid while the MjData lives
+        self._copies = [[(getattr(self, name), getattr(d, name)) for name in names] for d in self.data]
+        self._ctrl = [d.ctrl for d in self.data]
+        self.threads = threads
+        self._pool = ThreadPoolExecutor(threads) if threads > 1 else None
+
+    def reset(self, ids: np.ndarray | None, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        """Gymnasium's reset of simulations ``ids`` (None: all): ``mj_resetData``, the state, ``mj_forward``."""
+        m = self.model
+        for sim, q, v in zip(np.arange(len(self.data))[rows(ids)].tolist(), qpos, qvel, strict=True):
+            d = self.data[sim]
+            mujoco.mj_resetData(m, d)
+            d.qpos[:], d.qvel[:] = q, v
+            mujoco.mj_forward(m, d)
+            self._copy_out(sim)
+
+    def step(self, ids: np.ndarray | None, nstep: int) -> float:
+        """``nstep`` calls to ``mj_step`` from ``ctrl``, then ``mj_rnePostConstraint``, per simulation; returns
+        the seconds of the ``mj_step`` calls alone, as if spread evenly over the threads (a bound for any
+        loop around them)."""
+        sims = iter(np.arange(len(self.data))[rows(ids)].tolist())
+        if self._pool is None:
+            return self._run(sims, nstep)
+        # every thread takes the next simulation from the one iterator, so none waits while another has work
+        return sum(self._pool.map(self._run, [sims] * self.threads, [nstep] * self.threads)) / self.threads
+
+    def _run(self, sims: Iterator[int], nstep: int) -> float:
+        m, clock, physics = self.model, time.perf_counter, 0.0
+        for sim in sims:
+            d = self.data[sim]
+            self._ctrl[sim][:] = self.ctrl[sim]
+            t0 = clock()
+            mujoco.mj_step(m, d, nstep)
+            physics += clock() - t0
+            mujoco.mj_rnePostConstraint(m, d)
+            self._copy_out(sim)
+        return physics
+
+    def _copy_out(self, sim: int) -> None:
+        for out, field in self._copies[sim]:
+            out[sim] = field
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+
+
 class MujocoBatchEnv(BatchEnv):
     """P simulations of one task on ``num_threads`` MuJoCo threads, as a TorchRL env of batch size [P]."""
 
@@ -88,76 +175,61 @@ class MujocoBatchEnv(BatchEnv):
         high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
         action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
         super().__init__(num_envs, observation_size(m, task), action_spec, task.max_episode_steps)
-        # a persistent batch keeps each simulation's MjData, whose contact forces HumanoidStandup needs
-        self.batch = Batch(m, num_envs, nthread=num_threads, persistent=task.standup)
-        self.qpos, self.qvel, self.ctrl = self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl")
-        self.dt = m.opt.timestep * task.frame_skip
         if task.standup:
-            self.cinert, self.cvel = self.batch.bind("cinert"), self.batch.bind("cvel")
-            self.qfrc_actuator = self.batch.bind("qfrc_actuator")
-            self.cfrc_ext = np.zeros((p, m.nbody, 6))
-            self._scratch = mujoco.MjData(m)
+            self.sims = DataSimulations(m, num_envs, num_threads, STANDUP_FIELDS)
+        else:
+            self.sims = BatchSimulations(m, num_envs, num_threads)
+        self.dt = m.opt.timestep * task.frame_skip
         self._x_before = np.zeros(p)
-        self.physics_seconds = 0.0  # wall time inside the batched physics call (benchmarks read it)
+        self.physics_seconds = 0.0  # the physics alone (benchmarks read it): see the simulations' step
 
     def _write_obs(self, ids: np.ndarray | None) -> None:
         """Gymnasium's ``_get_obs`` for the rows ``ids`` (None: all) into the observation buffer."""
         slots = rows(ids)
-        m, task = self.model, self.task
+        m, task, sims = self.model, self.task, self.sims
         k = task.skipped_qpos
-        parts = [self.qpos[slots, k:], self.qvel[slots]]
+        parts = [sims.qpos[slots, k:], sims.qvel[slots]]
         if task.standup:
             parts += [
-                self.cinert[slots, 1:].reshape(-1, (m.nbody - 1) * 10),
-                self.cvel[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
-                self.qfrc_actuator[slots, 6:],
-                self.cfrc_ext[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
+                sims.cinert[slots, 1:].reshape(-1, (m.nbody - 1) * 10),
+                sims.cvel[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
+                sims.qfrc_actuator[slots, 6:],
+                sims.cfrc_ext[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
             ]
         if ids is None:
             np.concatenate(parts, axis=1, out=self._obs)
         else:
             self._obs[ids] = np.concatenate(parts, axis=1)
 
-    def _contact_forces(self, ids: np.ndarray | None) -> None:
-        """Gymnasium's ``mj_rnePostConstraint`` after each step: external contact forces per body."""
-        data = self._scratch
-        for sim in self._all[rows(ids)]:
-            self.batch.get_data(int(sim), data)
-            mujoco.mj_rnePostConstraint(self.model, data)
-            self.cfrc_ext[sim] = data.cfrc_ext
-
     def _reset_slots(self, ids: np.ndarray | None) -> None:
-        task = self.task
-        self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
-        for sim in self._all[rows(ids)]:
-            self.qpos[sim], self.qvel[sim] = initial_state(task, self.model, self._rngs[sim])
-        self.batch.forward(ids)
-        if task.standup:
-            self.cfrc_ext[rows(ids)] = 0.0  # mj_resetData clears it and mj_forward does not compute it
+        states = [initial_state(self.task, self.model, self._rngs[sim]) for sim in self._all[rows(ids)]]
+        qpos, qvel = zip(*states, strict=True)
+        self.sims.reset(ids, np.stack(qpos), np.stack(qvel))
         self._write_obs(ids)
 
     def _advance(self, ids: np.ndarray | None, action: np.ndarray) -> None:
         slots = rows(ids)
-        task = self.task
-        self.ctrl[slots] = action
+        task, sims = self.task, self.sims
+        sims.ctrl[slots] = action
         if not task.standup:
-            self._x_before[slots] = self.qpos[slots, 0]
-        t0 = time.perf_counter()
-        self.batch.step(ids, nstep=task.frame_skip)
-        self.physics_seconds += time.perf_counter() - t0
+            self._x_before[slots] = sims.qpos[slots, 0]
+        self.physics_seconds += sims.step(ids, task.frame_skip)
         if task.standup:
-            self._contact_forces(ids)
-            uph = self.qpos[slots, 2] / self.model.opt.timestep
-            quad_ctrl = task.ctrl_cost_weight * np.square(self.ctrl[slots]).sum(-1)
+            uph = sims.qpos[slots, 2] / self.model.opt.timestep
+            quad_ctrl = task.ctrl_cost_weight * np.square(sims.ctrl[slots]).sum(-1)
             impact = np.minimum(
-                IMPACT_COST_WEIGHT * np.square(self.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX
+                IMPACT_COST_WEIGHT * np.square(sims.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX
             )
             self._reward[slots] = uph - quad_ctrl - impact + 1
         else:
             # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
             ctrl_cost = task.ctrl_cost_weight * np.square(action).sum(-1)
-            self._reward[slots] = (self.qpos[slots, 0] - self._x_before[slots]) / self.dt - ctrl_cost
+            self._reward[slots] = (sims.qpos[slots, 0] - self._x_before[slots]) / self.dt - ctrl_cost
         self._write_obs(ids)
+
+    def close(self, *, raise_if_closed: bool = True) -> None:
+        self.sims.close()
+        super().close(raise_if_closed=raise_if_closed)
 
 
 def mujoco_batch_backend(env_id: str, num_envs: int, threads: int = 1) -> EnvBase:
