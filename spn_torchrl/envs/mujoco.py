@@ -99,7 +99,7 @@ class BatchSimulations:
         return time.perf_counter() - t0
 
     def close(self) -> None:
-        pass
+        """Nothing to release: the batch's threads end with the batch."""
 
 
 class DataSimulations:
