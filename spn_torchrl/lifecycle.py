@@ -23,7 +23,15 @@ from omegaconf import OmegaConf
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, config_dict
 from spn_torchrl.errors import CheckpointError, ConfigError, RunInterrupted
-from spn_torchrl.records import Progress, close_logger, logger_run_id, make_logger, trim_csv_logs, write_atomic
+from spn_torchrl.records import (
+    Progress,
+    close_logger,
+    logger_run_id,
+    make_logger,
+    source_commit,
+    trim_csv_logs,
+    write_atomic,
+)
 
 log = logging.getLogger("spn_torchrl")
 
@@ -33,6 +41,7 @@ SAFE = ("resume", "run_name", "torch_threads", "env.threads", "logger", "evaluat
 # rows an uninterrupted run of the new budget writes
 BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
 PROGRESS_NAME = "progress.csv"
+COMMIT_NAME = "COMMIT"
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -152,6 +161,7 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
     the exit code when the body raised or a signal stopped it), and the run's config and rows on disk are the
     checkpoint's."""
     state = _resume_state(cfg, run_dir, kind, meta)
+    record_commit(run_dir, resumed=state is not None, commit=source_commit())
     run = Run(run_dir, cfg, name, kind, meta, state)
     if state is not None:
         run.name, run.wandb_id, run.rows = state["run_name"], state["wandb_id"], list(state["rows"])
@@ -171,6 +181,27 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
         raise
     finally:
         close_logger(run.logger, exit_code)
+
+
+def record_commit(run_dir: Path, resumed: bool, commit: str | None) -> None:
+    """``COMMIT``: the commit of the code that made the run (``commit``; None for code that is not one commit),
+    written when the run starts. A resume by other code removes it: no one commit made the run any more."""
+    path = run_dir / COMMIT_NAME
+    recorded = path.read_text().strip() if path.is_file() else None
+    if not resumed and commit is not None:
+        write_atomic(path, commit + "\n")
+        return
+    if recorded is not None and (not resumed or recorded != commit):
+        path.unlink()  # an earlier start's, or the start's of a run that other code now continues
+    if resumed and recorded is not None and recorded != commit:
+        log.warning(
+            "resume: %s removed: the run started on commit %s, this code is %s",
+            path,
+            recorded,
+            commit or "not one commit (uncommitted changes, or no checkout)",
+        )
+    if commit is None:
+        log.info("%s not written: the code is not a git checkout without uncommitted changes", path)
 
 
 def _last_step(rows: list[dict[str, Any]]) -> int:

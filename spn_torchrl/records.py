@@ -9,6 +9,7 @@ import logging
 import netrc
 import os
 import stat
+import subprocess
 import tempfile
 import threading
 from collections.abc import Mapping
@@ -22,6 +23,26 @@ from spn_torchrl.errors import RunFileError
 
 log = logging.getLogger("spn_torchrl")
 _UMASK_LOCK = threading.Lock()
+SOURCE_ROOT = Path(__file__).resolve().parents[1]  # the checkout when the package runs from one
+
+
+def source_commit(root: Path = SOURCE_ROOT) -> str | None:
+    """The commit of the code in ``root`` when ``root`` is the top of a git checkout whose tracked files have no
+    uncommitted changes; None otherwise (an installed package, no git, or changes)."""
+
+    def git(*args: str) -> str | None:
+        try:
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=60)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+
+    top = git("rev-parse", "--show-toplevel")
+    if top is None or Path(top).resolve() != root.resolve():  # a package inside another project's checkout
+        return None
+    if git("status", "--porcelain", "--untracked-files=no") != "":
+        return None
+    return git("rev-parse", "HEAD")
 
 
 def current_umask() -> int:

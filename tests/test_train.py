@@ -8,7 +8,7 @@ import torch
 from conftest import ROOT, TINY, run_train, train_command
 
 from spn_torchrl import checkpoint
-from spn_torchrl.records import read_progress
+from spn_torchrl.records import read_progress, source_commit
 
 pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
 
@@ -45,6 +45,9 @@ def test_train_tiny_budget_writes_progress_checkpoint_and_logs(tmp_path, algo):
     assert state["w1"].shape == (64, 4) and state["w2"].shape == (2, 64)
     assert state["generation"] == 2 and state["meta"]["genome"] == ("connections" if algo == "conn_ga" else "weights")
     assert (tmp_path / "logs").is_dir() and (tmp_path / "train.log").exists()
+    commit = source_commit()  # this checkout's commit, None while it has uncommitted changes
+    recorded = tmp_path / "COMMIT"
+    assert (recorded.read_text().strip() if recorded.exists() else None) == commit
 
 
 def test_killed_run_resumes_to_the_same_result(tmp_path):
