@@ -187,19 +187,19 @@ def record_commit(run_dir: Path, resumed: bool, commit: str | None) -> None:
     """``COMMIT``: the commit of the code that made the run (``commit``; None for code that is not one commit),
     written when the run starts. A resume by other code removes it: no one commit made the run any more."""
     path = run_dir / COMMIT_NAME
-    recorded = path.read_text().strip() if path.is_file() else None
     if not resumed and commit is not None:
         write_atomic(path, commit + "\n")
         return
+    recorded = path.read_text().strip() if path.is_file() else None
     if recorded is not None and (not resumed or recorded != commit):
         path.unlink()  # an earlier start's, or the start's of a run that other code now continues
-    if resumed and recorded is not None and recorded != commit:
-        log.warning(
-            "resume: %s removed: the run started on commit %s, this code is %s",
-            path,
-            recorded,
-            commit or "not one commit (uncommitted changes, or no checkout)",
-        )
+        if resumed:
+            log.warning(
+                "resume: %s removed: the run started on commit %s, this code is %s",
+                path,
+                recorded,
+                commit or "not one commit (uncommitted changes, or no checkout)",
+            )
     if commit is None:
         log.info("%s not written: the code is not a git checkout without uncommitted changes", path)
 

@@ -110,6 +110,7 @@ class DataSimulations:
     def __init__(self, model: mujoco.MjModel, num_envs: int, threads: int, fields: tuple[str, ...]) -> None:
         self.model = model
         self.data = [mujoco.MjData(model) for _ in range(num_envs)]
+        self._sims = np.arange(num_envs)
         names = ("qpos", "qvel", *fields)
         for name in names:
             setattr(self, name, np.zeros((num_envs, *getattr(self.data[0], name).shape)))
@@ -123,7 +124,7 @@ class DataSimulations:
     def reset(self, ids: np.ndarray | None, qpos: np.ndarray, qvel: np.ndarray) -> None:
         """Gymnasium's reset of simulations ``ids`` (None: all): ``mj_resetData``, the state, ``mj_forward``."""
         m = self.model
-        for sim, q, v in zip(np.arange(len(self.data))[rows(ids)].tolist(), qpos, qvel, strict=True):
+        for sim, q, v in zip(self._sims[rows(ids)].tolist(), qpos, qvel, strict=True):
             d = self.data[sim]
             mujoco.mj_resetData(m, d)
             d.qpos[:], d.qvel[:] = q, v
@@ -134,7 +135,7 @@ class DataSimulations:
         """``nstep`` calls to ``mj_step`` from ``ctrl``, then ``mj_rnePostConstraint``, per simulation; returns
         the seconds of the ``mj_step`` calls alone, as if spread evenly over the threads (a bound for any
         loop around them)."""
-        sims = iter(np.arange(len(self.data))[rows(ids)].tolist())
+        sims = iter(self._sims[rows(ids)].tolist())
         if self._pool is None:
             return self._run(sims, nstep)
         # every thread takes the next simulation from the one iterator, so none waits while another has work
