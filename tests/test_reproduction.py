@@ -152,3 +152,17 @@ def test_finished_dpn_ppo_runs_set_r_instead_of_the_papers(tmp_path):
     assert reach["status"] == "confirmed" and "R = 90.5 (dpn_ppo runs" in reach["ours"]
     md = Path(result["markdown"]).read_text()
     assert "R = 107.52 (mean only)" in md and "swimmer dpn_ppo seed 2: 1000 of 2000 env steps" in md
+
+
+def test_the_committed_reproduction_is_what_its_committed_runs_give(tmp_path):
+    """reproduction/README.md and report.json are the report command's output over reproduction/runs, never edited
+    by hand nor left behind by a run added without regenerating them; every committed run reached its budget."""
+    committed = ROOT / "reproduction"
+    result = build_reproduction([committed / "runs"], tmp_path, preface=committed / "PREFACE.md")
+    assert result["stopped"] == []
+    for run in (committed / "runs").iterdir():
+        assert sorted(p.name for p in run.iterdir()) == ["COMMIT", "config.yaml", "progress.csv"], run
+        assert all(p.stat().st_size < 1_000_000 for p in run.iterdir()), run
+    regenerate = "run: python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
+    assert (tmp_path / "README.md").read_text() == (committed / "README.md").read_text(), regenerate
+    assert json.loads((tmp_path / "report.json").read_text()) == json.loads((committed / "report.json").read_text())
