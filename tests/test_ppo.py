@@ -17,7 +17,7 @@ from spn_torchrl.records import read_progress
 from spn_torchrl.seeds import episode_seed
 from spn_torchrl.snn.policies import PopulationSPN, TrainableSPN, init_fixed_weights
 from spn_torchrl.snn.surrogate import surrogate_spike
-from spn_torchrl.training.ppo import evaluate_policy, load_actor, make_actor, make_critic
+from spn_torchrl.training.ppo import Keyed, evaluate_policy, load_actor, make_actor, make_critic
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -99,6 +99,25 @@ def test_ppo_loss_decreases_on_a_fixed_batch() -> None:
         total.backward()
         optim.step()
     assert losses[-1] < 0.5 * losses[0]
+
+
+@pytest.mark.parametrize("out_keys", [["value"], ["loc", "scale"]])
+def test_keyed_writes_what_a_tensordict_module_writes(out_keys: list[str]) -> None:
+    from tensordict import TensorDict
+    from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule
+
+    torch.manual_seed(0)
+    net = torch.nn.Linear(4, 2) if len(out_keys) == 1 else AddStateIndependentNormalScale(4, init_value=-0.5)
+    td = TensorDict({"observation": torch.randn(8, 4)}, batch_size=[8])
+    ours = Keyed(net, in_keys=["observation"], out_keys=out_keys)(td.clone())
+    theirs = TensorDictModule(net, in_keys=["observation"], out_keys=out_keys)(td.clone())
+    assert set(ours.keys()) == set(theirs.keys()) == {"observation", *out_keys}
+    assert all(torch.equal(ours[key], theirs[key]) for key in out_keys)
+    assert list(Keyed(net, ["observation"], out_keys).state_dict()) == list(
+        TensorDictModule(net, in_keys=["observation"], out_keys=out_keys).state_dict()
+    )
+    with pytest.raises(ValueError):
+        Keyed(net, in_keys=["observation"], out_keys=["a", "b", "c"])(td.clone())
 
 
 def _strip_time(rows):

@@ -15,12 +15,13 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictSequential
+from tensordict import TensorDictBase
+from tensordict.nn import AddStateIndependentNormalScale, TensorDictModuleBase, TensorDictSequential
 from torch import nn
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, ReplayBuffer, SamplerWithoutReplacement
 from torchrl.envs import EnvBase, ExplorationType, set_exploration_type
-from torchrl.modules import IndependentNormal, ProbabilisticActor, ValueOperator
+from torchrl.modules import IndependentNormal, ProbabilisticActor
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
@@ -36,6 +37,27 @@ from spn_torchrl.snn.surrogate import surrogate_spike
 log = logging.getLogger("spn_torchrl")
 
 COUNTERS = ("policy_forward", "policy_backward", "value_forward", "value_backward", "eval_policy_forward")
+
+
+class Keyed(TensorDictModuleBase):
+    """A network read from ``in_keys`` and written to ``out_keys`` of a tensordict, the role of TensorDictModule.
+
+    TensorDictModule passes every output through ``TensorDict.from_any``, which (tensordict 0.14) searches
+    sys.path for pandas on each call where pandas is not installed: most of an actor's per-step cost here. This
+    writes the outputs as they are, with the same parameter names (``module.*``), so checkpoints carry over.
+    """
+
+    def __init__(self, module: nn.Module, in_keys: list[str], out_keys: list[str]) -> None:
+        super().__init__()
+        self.module = module
+        self.in_keys = list(in_keys)
+        self.out_keys = list(out_keys)
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        out = self.module(*(tensordict.get(key) for key in self.in_keys))
+        for key, value in zip(self.out_keys, out if isinstance(out, tuple) else (out,), strict=True):
+            tensordict.set(key, value)
+        return tensordict
 
 
 def dpn(n_obs: int, n_act: int, hidden: int, discrete: bool) -> nn.Module:
@@ -60,7 +82,7 @@ def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticAct
     net = spn_net(cfg, spec) if algo.policy == "spn" else dpn(spec.n_obs, spec.n_act, algo.hidden, spec.discrete)
     action_spec = env.full_action_spec_unbatched
     if spec.discrete:
-        module = TensorDictModule(net, in_keys=["observation"], out_keys=["logits"])
+        module = Keyed(net, in_keys=["observation"], out_keys=["logits"])
         return ProbabilisticActor(
             module,
             in_keys=["logits"],
@@ -69,8 +91,8 @@ def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticAct
             return_log_prob=True,
         )
     module = TensorDictSequential(
-        TensorDictModule(net, in_keys=["observation"], out_keys=["loc_net"]),
-        TensorDictModule(
+        Keyed(net, in_keys=["observation"], out_keys=["loc_net"]),
+        Keyed(
             AddStateIndependentNormalScale(spec.n_act, scale_lb=1e-6, init_value=algo.log_std_init),
             in_keys=["loc_net"],
             out_keys=["loc", "scale"],
@@ -81,10 +103,10 @@ def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticAct
     )
 
 
-def make_critic(spec: TaskSpec, hidden: int) -> ValueOperator:
-    """The paper's value net: n -> hidden ReLU -> 1."""
+def make_critic(spec: TaskSpec, hidden: int) -> Keyed:
+    """The paper's value net: n -> hidden ReLU -> 1, as TorchRL's value operator (observation -> state_value)."""
     net = nn.Sequential(nn.Linear(spec.n_obs, hidden), nn.ReLU(), nn.Linear(hidden, 1))
-    return ValueOperator(net, in_keys=["observation"])
+    return Keyed(net, in_keys=["observation"], out_keys=["state_value"])
 
 
 def evaluate_policy(actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int) -> tuple[torch.Tensor, int]:
