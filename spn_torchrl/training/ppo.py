@@ -43,7 +43,7 @@ class Keyed(TensorDictModuleBase):
     """A network read from ``in_keys`` and written to ``out_keys`` of a tensordict, the role of TensorDictModule.
 
     TensorDictModule passes every output through ``TensorDict.from_any``, which (tensordict 0.14) searches
-    sys.path for pandas on each call where pandas is not installed: most of an actor's per-step cost here. This
+    sys.path for pandas on each call where pandas is not installed: about half an actor step here. This
     writes the outputs as they are, with the same parameter names (``module.*``), so checkpoints carry over.
     """
 
