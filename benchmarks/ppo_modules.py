@@ -3,7 +3,7 @@
     python benchmarks/ppo_modules.py [--env halfcheetah] [--calls 500 --repeats 5]
 
 Times one collection step's actor call (a single observation, no grad) and one minibatch's actor and critic
-forward and backward (100 observations), each built twice from the same weights: with the project's ``Keyed``
+forward and backward (``algo.minibatch_size`` observations), each built twice from the same weights: with the project's ``Keyed``
 and with TensorDictModule in its place. TensorDictModule passes every output through ``TensorDict.from_any``,
 which (tensordict 0.14) searches sys.path for pandas on each call where pandas is not installed. The last line
 is ``step_speedup=<x> minibatch_speedup=<y>``.
@@ -56,7 +56,7 @@ def timings(
 
     def minibatch() -> None:
         td = critic(actor(batch_td.clone()))
-        (td[actor.log_prob_keys[0]].sum() + td["state_value"].sum()).backward()
+        (td[actor.log_prob_keys[0]].sum() + td[critic.out_keys[0]].sum()).backward()
 
     return per_call_ms(step, calls), per_call_ms(minibatch, max(1, calls // 4))
 
@@ -74,10 +74,7 @@ def main() -> None:
     spec = task_spec(cfg.env.id)
     env = make_transformed_env(spec.env_id, 1)
     step_td = env.reset()
-    batch_td = env.rollout(100).reshape(-1).exclude("next")
-    env.close()
-    print(f"{spec.env_id}: pandas installed: {importlib.util.find_spec('pandas') is not None}")
-
+    batch_td = env.rollout(cfg.algo.minibatch_size).reshape(-1).exclude("next")
     built = {}
     for label in ("Keyed", "TensorDictModule"):
         torch.manual_seed(0)
@@ -85,6 +82,8 @@ def main() -> None:
         if label == "TensorDictModule":
             actor, critic = as_tensordict_modules(actor), as_tensordict_modules(critic)
         built[label] = actor, critic
+    env.close()
+    print(f"{spec.env_id}: pandas installed: {importlib.util.find_spec('pandas') is not None}")
     figures = {label: (float("inf"), float("inf")) for label in built}
     for _ in range(args.repeats):  # interleaved, best of each: robust to other load on the cores
         for label, (actor, critic) in built.items():
