@@ -10,7 +10,7 @@ from torchrl.envs import TransformedEnv
 
 from spn_torchrl.envs import make_batched_env, make_transformed_env, task_spec
 from spn_torchrl.errors import ConfigError, EvaluatorError
-from spn_torchrl.evaluation.processes import ProcessEvaluator
+from spn_torchrl.evaluation.processes import CLOSE_GRACE_S, ProcessEvaluator
 from spn_torchrl.evaluation.rollout import PopulationEvaluator
 from spn_torchrl.seeds import FITNESS, REEVALUATION, episode_seed, episode_seeds
 from spn_torchrl.snn.policies import PopulationSPN, build_spn, init_fixed_weights
@@ -186,14 +186,15 @@ def test_a_stopped_worker_process_is_a_clear_error_within_the_call_timeout(reque
         began = time.monotonic()
         with pytest.raises(EvaluatorError) as raised:
             evaluator(genomes, 0)
-        assert 2.0 <= time.monotonic() - began < 4.0
+        # bounds with room for a loaded host: the error comes at the timeout, close() kills after its grace
+        assert 2.0 <= time.monotonic() - began < 2.0 + 3.0
         assert str(raised.value) == (
             f"evaluator process 1 (slots {evaluator.bounds[1][0]}..{stop}, pid {pid}) did not evaluate within "
             "evaluator.call_timeout_s=2 s: it is stopped (SIGSTOP?)"
         )
         began = time.monotonic()
         evaluator.close()
-        assert time.monotonic() - began < 3.0
+        assert time.monotonic() - began < CLOSE_GRACE_S + 3.0  # the busy worker may need the whole grace
         assert not any(p.is_alive() for p in workers) and workers[1].exitcode == -signal.SIGKILL
     finally:
         evaluator.close()

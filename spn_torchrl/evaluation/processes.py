@@ -28,6 +28,7 @@ from spn_torchrl.evaluation.shards import Results, ShardWorker, merge, shard_bou
 from spn_torchrl.snn.policies import PopulationSPN
 
 CALL_TIMEOUT_S = LocalEvaluatorConfig.call_timeout_s  # a genome set's evaluation past this is a stall
+CLOSE_GRACE_S = 5.0  # close() waits this long for workers to exit when asked, then kills the rest
 
 
 def spawn_blocked_by() -> str | None:
@@ -178,7 +179,7 @@ class ProcessEvaluator:
                 with contextlib.suppress(OSError):
                     os.set_blocking(pipe.fileno(), False)  # a full pipe must not block close
                     pipe.send(None)
-        deadline = time.monotonic() + (0 if in_flight else 5)
+        deadline = time.monotonic() + (0 if in_flight else CLOSE_GRACE_S)
         for process in self._processes:
             if not _stopped(process.pid):
                 process.join(timeout=max(0.0, deadline - time.monotonic()))
