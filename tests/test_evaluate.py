@@ -187,14 +187,15 @@ def test_a_stopped_worker_process_is_a_clear_error_within_the_call_timeout(reque
         with pytest.raises(EvaluatorError) as raised:
             evaluator(genomes, 0)
         # bounds with room for a loaded host: the error comes at the timeout, close() kills after its grace
-        assert 2.0 <= time.monotonic() - began < 2.0 + 3.0
+        timeout = evaluator.call_timeout_s
+        assert timeout <= time.monotonic() - began < timeout + 3.0
         assert str(raised.value) == (
             f"evaluator process 1 (slots {evaluator.bounds[1][0]}..{stop}, pid {pid}) did not evaluate within "
             "evaluator.call_timeout_s=2 s: it is stopped (SIGSTOP?)"
         )
         began = time.monotonic()
         evaluator.close()
-        assert time.monotonic() - began < CLOSE_GRACE_S + 3.0  # the busy worker may need the whole grace
+        assert time.monotonic() - began < CLOSE_GRACE_S + 3.0  # a loaded host's idle worker may exit that late
         assert not any(p.is_alive() for p in workers) and workers[1].exitcode == -signal.SIGKILL
     finally:
         evaluator.close()
