@@ -104,7 +104,7 @@ def ppo_level(
     if runs:
         return float(
             pooled(runs, "eval_return")[:, -1].mean()
-        ), f"{PPO_LEVEL_ALGO} runs, final return, {len(runs)} seeds"
+        ), f"{PPO_LEVEL_ALGO} runs, final return, {len(runs)} seed(s)"
     return None, "no PPO run found and no --ppo-level given"
 
 
