@@ -4,9 +4,9 @@
 
 Times one collection step's actor call (a single observation, no grad) and one minibatch's actor and critic
 forward and backward (``algo.minibatch_size`` observations), each built twice from the same weights: with the
-project's ``Keyed`` and with TensorDictModule in its place. TensorDictModule passes every output through ``TensorDict.from_any``,
-which (tensordict 0.14) searches sys.path for pandas on each call where pandas is not installed. The last line
-is ``step_speedup=<x> minibatch_speedup=<y>``.
+project's ``Keyed`` and with TensorDictModule in its place. TensorDictModule passes every output through
+``TensorDict.from_any``, which (tensordict 0.14) searches sys.path for pandas on each call where pandas is not
+installed. The last line is ``step_speedup=<x> minibatch_speedup=<y>``.
 """
 
 from __future__ import annotations
