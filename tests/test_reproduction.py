@@ -141,17 +141,20 @@ def test_finished_dpn_ppo_runs_set_r_instead_of_the_papers(tmp_path):
     runs = tmp_path / "runs"
     for seed in (0, 1):
         write_run(runs, "swimmer", "Swimmer-v5", "conn_ga", seed, curve(150.0 + seed, 10))
-        write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", seed, [50.0, 90.0 + seed], kind="ppo", total_env_steps=2000)
+        write_run(
+            runs, "swimmer", "Swimmer-v5", "dpn_ppo", seed, [50.0, 90.0 + seed / 3], kind="ppo", total_env_steps=2000
+        )
     write_run(runs, "swimmer", "Swimmer-v5", "dpn_ppo", 2, [5.0], kind="ppo", total_env_steps=2000)  # stopped
     result = build_reproduction([runs], tmp_path / "out")
     task = result["tasks"]["swimmer"]
-    assert task["ppo_level"] == pytest.approx(90.5) and task["ppo_level_source"].startswith("dpn_ppo runs")
+    assert task["ppo_level"] == pytest.approx(90.0 + 1 / 6) and task["ppo_level_source"].startswith("dpn_ppo runs")
     assert task["methods"]["dpn_ppo"]["seeds"] == [0, 1]
     rows = {r["algo"]: r for r in result["comparisons"]["swimmer"]}
     assert rows["dpn_ppo"]["verdict"] == "not tested: the paper gives R without a std"
     reach = claim(result, "Connections-GA reaches the PPO level R on Swimmer")
-    assert reach["status"] == "confirmed" and "R = 90.5 (dpn_ppo runs" in reach["ours"]
+    assert reach["status"] == "confirmed" and "R = 90.17 (dpn_ppo runs" in reach["ours"]
     md = Path(result["markdown"]).read_text()
+    assert md.count("PPO level R: 90.17 (dpn_ppo runs") == 2 and "90.1667" not in md  # one R, printed one way
     assert "R = 107.52 (mean only)" in md and "swimmer dpn_ppo seed 2: 1000 of 2000 env steps" in md
 
 

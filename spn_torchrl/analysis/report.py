@@ -260,6 +260,11 @@ def _budget(budget: dict[str, Any]) -> str:
     return f"{text} (not the paper's: {', '.join(differs)})" if differs else text
 
 
+def level_text(level: float | None) -> str:
+    """A PPO level R as every report prints it: two decimals, or ``none``."""
+    return "none" if level is None else f"{level:.2f}"
+
+
 def _ratio(value: float | None) -> str:
     return "-" if value is None else f"**{value:.1f}**"
 
@@ -297,7 +302,7 @@ def task_markdown(s: dict[str, Any], figure: str | None) -> list[str]:
     if not s["methods"]:
         return out
     level = s["ppo_level"]
-    out.append(f"PPO level R: {'none' if level is None else f'{level:.2f}'} ({s['ppo_level_source']}).")
+    out.append(f"PPO level R: {level_text(level)} ({s['ppo_level_source']}).")
     if not any(m["kind"] == "ppo" for m in s["methods"].values()):
         out.append("No PPO run found for this task: the PPO curve and a measured E_PPO are missing.")
     out.append("")
@@ -332,7 +337,7 @@ def task_markdown(s: dict[str, Any], figure: str | None) -> list[str]:
         rows = [
             [
                 algo,
-                f"{level:.2f}",
+                level_text(level),
                 e["G"] if e["G"] is not None else "not reached",
                 sig(e["E"]),
                 "-" if e["gamma"] is None else f"**{e['gamma']:.2f}**",

@@ -16,7 +16,14 @@ from typing import Any
 
 from spn_torchrl.analysis import paper
 from spn_torchrl.analysis.energy import first_generation_at, sig
-from spn_torchrl.analysis.report import PPO_LEVEL_ALGO, left_out_entry, stopped_lines, summarize, task_markdown
+from spn_torchrl.analysis.report import (
+    PPO_LEVEL_ALGO,
+    left_out_entry,
+    level_text,
+    stopped_lines,
+    summarize,
+    task_markdown,
+)
 from spn_torchrl.analysis.runs import RunRecord
 from spn_torchrl.analysis.stats import ALPHA, p_text, sample_sd, verdict, welch
 
@@ -140,7 +147,7 @@ def _reach_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             continue
         task = tasks[env]
         g = task["data_efficiency"].get("conn_ga", {}).get("G")
-        level = f"R = {task['ppo_level']:g} ({_short_source(task['ppo_level_source'])})"
+        level = f"R = {level_text(task['ppo_level'])} ({_short_source(task['ppo_level_source'])})"
         ours = f"{level}: " + (f"reached at generation {g}" if g else f"not reached in {m['rows']} generations")
         out.append(_claim(claim, paper_text, ours + _note(m), CONFIRMED if g else NOT_CONFIRMED))
     return out
@@ -201,7 +208,7 @@ def _weights_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             continue
         task = tasks[env]
         g = task["data_efficiency"].get("weights_ga", {}).get("G")
-        ours = f"R = {task['ppo_level']:g} ({_short_source(task['ppo_level_source'])}): " + (
+        ours = f"R = {level_text(task['ppo_level'])} ({_short_source(task['ppo_level_source'])}): " + (
             f"reached at generation {g}" if g else f"not reached in {w['rows']} generations"
         )
         out.append(_claim(claim, paper_text, ours + _note(w), NOT_CONFIRMED if g else CONFIRMED))
@@ -223,7 +230,10 @@ def _conn_ppo_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             out.append(_claim(claim, paper_text, f"first {curve[0]:.1f}, last {curve[-1]:.1f}; no R", NOT_CONFIRMED))
             continue
         below = m["final_return_mean"] < level
-        ours = f"first iteration {_value(curve[0])}, last {_value(curve[-1])} ({trend}); R = {level:g}" + _note(m)
+        ours = (
+            f"first iteration {_value(curve[0])}, last {_value(curve[-1])} ({trend}); R = {level_text(level)}"
+            + _note(m)
+        )
         out.append(_claim(claim, paper_text, ours, CONFIRMED if below else NOT_CONFIRMED))
     return out
 
@@ -345,7 +355,7 @@ def comparison_markdown(env: str, s: dict[str, Any], figure: str | None) -> tupl
         ]
     level = s["ppo_level"]
     if level is not None or env in paper.PPO_LEVEL:
-        out += ["", f"PPO level R: {'none' if level is None else f'{level:g}'} ({s['ppo_level_source']})."]
+        out += ["", f"PPO level R: {level_text(level)} ({s['ppo_level_source']})."]
     return out + [""], data
 
 
