@@ -17,7 +17,7 @@ COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red
 
 def _band(ax, x, runs: Sequence[RunRecord], label: str, color: str | None) -> None:
     mean, std = mean_std(pooled(runs, "eval_return"))
-    line = ax.plot(x, mean, label=f"{label} ({len(runs)} seeds)", color=color)[0]
+    line = ax.plot(x, mean, label=f"{label} ({len(runs)} seed(s))", color=color)[0]
     ax.fill_between(x, mean - std / 2, mean + std / 2, alpha=0.25, color=line.get_color(), linewidth=0)
 
 
