@@ -158,6 +158,18 @@ def test_finished_dpn_ppo_runs_set_r_instead_of_the_papers(tmp_path):
     assert "R = 107.52 (mean only)" in md and "swimmer dpn_ppo seed 2: 1000 of 2000 env steps" in md
 
 
+def test_connections_ppo_is_judged_on_its_evals_not_the_iterations_between(tmp_path):
+    """PPO evaluates every eval_interval iterations and writes NaN in between; the claim reads the evals."""
+    runs = tmp_path / "runs"
+    nan = float("nan")
+    write_run(runs, "halfcheetah", "HalfCheetah-v5", "dpn_ppo", 0, [nan, 3000.0], kind="ppo", total_env_steps=2000)
+    returns = [nan, -400.0, nan, 2000.0, nan, 1500.0]
+    write_run(runs, "halfcheetah", "HalfCheetah-v5", "conn_ppo", 0, returns, kind="ppo", total_env_steps=6000)
+    row = claim(build_reproduction([runs], tmp_path / "out"), "Connections-PPO does not converge on HalfCheetah")
+    assert row["ours"].startswith("eval -400.0 at iteration 2, 1500 at 6 (does not decrease); R = 3000.00")
+    assert row["status"] == "confirmed"
+
+
 def test_the_committed_reproduction_is_what_its_committed_runs_give(tmp_path):
     """reproduction/README.md and report.json are the report command's output over reproduction/runs, never edited
     by hand nor left behind by a run added without regenerating them; every committed run reached its budget."""

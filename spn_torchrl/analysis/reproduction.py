@@ -224,16 +224,17 @@ def _conn_ppo_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
         if m is None:
             out.append(_claim(claim, paper_text, "-", NOT_RUN))
             continue
-        curve, level = m["return_mean_curve"], tasks[env]["ppo_level"]
-        trend = "decreases" if curve[-1] < curve[0] else "does not decrease"
+        # PPO evaluates every eval_interval iterations: the curve is NaN in between.
+        evals = [(i, v) for i, v in enumerate(m["return_mean_curve"], start=1) if not math.isnan(v)]
+        (i_first, first), (i_last, last) = evals[0], evals[-1]
+        trend = "decreases" if last < first else "does not decrease"
+        ours = f"eval {_value(first)} at iteration {i_first}, {_value(last)} at {i_last} ({trend})"
+        level = tasks[env]["ppo_level"]
         if level is None:
-            out.append(_claim(claim, paper_text, f"first {curve[0]:.1f}, last {curve[-1]:.1f}; no R", NOT_CONFIRMED))
+            out.append(_claim(claim, paper_text, f"{ours}; no R", NOT_CONFIRMED))
             continue
         below = m["final_return_mean"] < level
-        ours = (
-            f"first iteration {_value(curve[0])}, last {_value(curve[-1])} ({trend}); R = {level_text(level)}"
-            + _note(m)
-        )
+        ours += f"; R = {level_text(level)}" + _note(m)
         out.append(_claim(claim, paper_text, ours, CONFIRMED if below else NOT_CONFIRMED))
     return out
 
