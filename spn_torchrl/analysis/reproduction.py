@@ -147,14 +147,20 @@ def _reach_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             continue
         task = tasks[env]
         g = task["data_efficiency"].get("conn_ga", {}).get("G")
-        level = f"R = {level_text(task['ppo_level'])} ({_short_source(task['ppo_level_source'])})"
-        ours = f"{level}: " + (f"reached at generation {g}" if g else f"not reached in {m['rows']} generations")
+        ours = f"{_our_level(task)}: " + (
+            f"reached at generation {g}" if g else f"not reached in {m['rows']} generations"
+        )
         out.append(_claim(claim, paper_text, ours + _note(m), CONFIRMED if g else NOT_CONFIRMED))
     return out
 
 
 def _short_source(source: str) -> str:
     return "paper's R" if source == PAPER_R_SOURCE else source
+
+
+def _our_level(task: dict[str, Any]) -> str:
+    """``R = 3175.18 (dpn_ppo runs, ...)``: the level a task's claims are judged against, with its source."""
+    return f"R = {level_text(task['ppo_level'])} ({_short_source(task['ppo_level_source'])})"
 
 
 def _versus(a: dict[str, Any], b: dict[str, Any]) -> tuple[str, float | None]:
@@ -208,7 +214,7 @@ def _weights_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             continue
         task = tasks[env]
         g = task["data_efficiency"].get("weights_ga", {}).get("G")
-        ours = f"R = {level_text(task['ppo_level'])} ({_short_source(task['ppo_level_source'])}): " + (
+        ours = f"{_our_level(task)}: " + (
             f"reached at generation {g}" if g else f"not reached in {w['rows']} generations"
         )
         out.append(_claim(claim, paper_text, ours + _note(w), NOT_CONFIRMED if g else CONFIRMED))
