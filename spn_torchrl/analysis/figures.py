@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -17,6 +18,9 @@ COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red
 
 def _band(ax, x, runs: Sequence[RunRecord], label: str, color: str | None) -> None:
     mean, std = mean_std(pooled(runs, "eval_return"))
+    # PPO evaluates every eval_interval iterations and logs NaN between: plot the evaluated points only.
+    evaluated = np.isfinite(mean)
+    x, mean, std = np.asarray(x)[evaluated], mean[evaluated], std[evaluated]
     line = ax.plot(x, mean, label=f"{label} ({len(runs)} seed(s))", color=color)[0]
     ax.fill_between(x, mean - std / 2, mean + std / 2, alpha=0.25, color=line.get_color(), linewidth=0)
 
@@ -30,7 +34,7 @@ def task_figure(
     published: dict[str, tuple[int, float, float]] | None = None,
     level_note: str = "",
 ) -> Path:
-    """Return vs generation (GA runs) and vs env steps (every method, one shared axis) for one task.
+    """Return vs generation (GA runs) and vs env steps (every method, one shared log axis) for one task.
 
     ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line);
     ``published`` maps a GA method to a published (generation, mean, std): a marker with a half-std bar.
@@ -73,8 +77,8 @@ def task_figure(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     by_gen.set_xlabel("generation")
-    by_steps.set_xlabel("env steps")
-    by_steps.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+    by_steps.set_xlabel("env steps (log scale: PPO's 1e6 and the GA's 3e7 on one axis)")
+    by_steps.set_xscale("log")
     by_gen.set_title(f"{title}: return vs generation (GA)")
     by_steps.set_title(f"{title}: return vs env steps")
     fig.text(0.5, 0.005, "line: mean over seeds; band: +- half a std over seeds", ha="center", fontsize=8)
