@@ -10,6 +10,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
 
 from spn_torchrl.analysis.runs import RunRecord, mean_std, pooled  # noqa: E402
 
@@ -79,6 +80,7 @@ def task_figure(
     by_gen.set_xlabel("generation")
     by_steps.set_xlabel("env steps (log scale: PPO's 1e6 and the GA's 3e7 on one axis)")
     by_steps.set_xscale("log")
+    by_steps.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short range
     by_gen.set_title(f"{title}: return vs generation (GA)")
     by_steps.set_title(f"{title}: return vs env steps")
     fig.text(0.5, 0.005, "line: mean over seeds; band: +- half a std over seeds", ha="center", fontsize=8)
