@@ -78,7 +78,7 @@ def task_figure(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     by_gen.set_xlabel("generation")
-    by_steps.set_xlabel("env steps (log scale: PPO's 1e6 and the GA's 3e7 on one axis)")
+    by_steps.set_xlabel("env steps (log scale)")
     by_steps.set_xscale("log")
     by_steps.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short range
     by_gen.set_title(f"{title}: return vs generation (GA)")
