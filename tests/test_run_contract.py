@@ -128,8 +128,17 @@ def test_a_signalled_run_resumes_to_the_uninterrupted_result(tmp_path, four):
         time.sleep(0.01)
     proc.send_signal(signal.SIGTERM)
     proc.communicate(timeout=120)
+    state = checkpoint.load(tmp_path)
     run_train(tmp_path, *BASE, "algo.generations=4", "resume=true")
     assert rows(tmp_path) == rows(four)
+    done, pending = state["generation"], state["pending"] is not None
+    if pending:  # stopped between a generation's evaluation and its elite's re-evaluation: its row is not yet written
+        said = f"resuming {tmp_path} after generation {done}; its row follows its elite's re-evaluation"
+        assert len(state["rows"]) == done - 1
+    else:
+        said = f"resuming {tmp_path} after generation {done}\n" if done < 4 else "already ran its 4 generations"
+        assert len(state["rows"]) == done
+    assert said in (tmp_path / "train.log").read_text()
 
 
 def test_file_faults_are_one_sentence(tmp_path):

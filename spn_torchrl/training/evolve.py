@@ -78,7 +78,8 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
             log.info("%s already ran its %d generations", run_dir, done)
             return run.rows[-1] if run.rows else {}
         if run.state is not None:
-            log.info("resuming %s after generation %d", run_dir, done)
+            waiting = "" if state["pending"] is None else "; its row follows its elite's re-evaluation"
+            log.info("resuming %s after generation %d%s", run_dir, done, waiting)
         return _generations(cfg, spec, run, state)
 
 
