@@ -36,7 +36,8 @@ from spn_torchrl.records import (
 log = logging.getLogger("spn_torchrl")
 
 # fields that cannot change a run's results: a resume may change them (logged)
-SAFE = ("resume", "run_name", "torch_threads", "env.threads", "logger", "evaluator")
+SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
+UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
 BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
@@ -66,7 +67,7 @@ def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) 
     refused, allowed = [], []
     for path in sorted(set(old_flat) | set(new_flat)):
         old, now = old_flat.get(path, "<absent>"), new_flat.get(path, "<absent>")
-        if old == now:
+        if old == now or path in UNCOMPARED:
             continue
         change = f"{path} {old!r} -> {now!r}"
         (allowed if _safe(path) or path == BUDGET[kind] else refused).append(change)

@@ -62,6 +62,7 @@ def test_a_resume_may_change_what_cannot_change_results_and_says_so(tmp_path, fo
     log = (tmp_path / "train.log").read_text()
     assert "resume: algo.generations 2 -> 4 (does not change results)" in log
     assert "resume: evaluator.processes None -> 1 (does not change results)" in log
+    assert "resume: resume " not in log  # resuming is the act, not a change
     assert rows(tmp_path) == rows(four)  # extended: the rows of the uninterrupted 4-generation run
 
 
