@@ -90,17 +90,18 @@ class Run:
     progress: Progress | None = None
 
     def record(self, row: Mapping[str, Any], step: int, prefix: Mapping[str, str] | None = None) -> None:
-        """Append a row to progress.csv and log it (metrics under ``train/``, or the prefix a column names)."""
+        """Add a row and log it (metrics under ``train/``, or the prefix a column names); progress.csv gets it with
+        the next checkpoint, so the file never holds a row the checkpoint lacks."""
         with deferred_signals():
             self.rows.append(dict(row))
-            self.progress.write(self.rows)
             if self.logger is not None:
                 prefix = prefix or {}
                 metrics = {f"{prefix.get(key, 'train')}/{key}": value for key, value in row.items()}
                 self.logger.log_metrics(metrics, step=step)
 
     def save(self, state: Mapping[str, Any]) -> None:
-        """Write the checkpoint: the loop's ``state`` with the run's meta, config, name, W&B id and rows."""
+        """Write the checkpoint (the loop's ``state`` with the run's meta, config, name, W&B id and rows), then
+        progress.csv with the same rows."""
         with deferred_signals():
             checkpoint.save(
                 {
@@ -113,6 +114,8 @@ class Run:
                 },
                 self.dir,
             )
+            if self.rows:
+                self.progress.write(self.rows)
 
 
 def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]) -> dict[str, Any] | None:
