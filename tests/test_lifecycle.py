@@ -16,10 +16,6 @@ from spn_torchrl.records import read_progress
 META = {"format": 1, "task": "test"}
 
 
-def checkpointed_rows(run_dir) -> list[dict]:
-    return checkpoint.load(run_dir)["rows"] if (run_dir / checkpoint.CHECKPOINT_NAME).exists() else []
-
-
 @pytest.mark.parametrize("when", ["pending before the row", "during the row"])
 def test_a_signal_between_a_row_and_its_checkpoint_leaves_both_holding_the_same_rows(tmp_path, make_config, when):
     cfg = make_config("env=cartpole", "logger=csv")
@@ -35,4 +31,4 @@ def test_a_signal_between_a_row_and_its_checkpoint_leaves_both_holding_the_same_
         run.record({"generation": 2, "eval_return": 2.0}, step=2)
         run.save({"generation": 2})
     assert [r["generation"] for r in read_progress(tmp_path / "progress.csv")] == [1]
-    assert [r["generation"] for r in checkpointed_rows(tmp_path)] == [1]
+    assert [r["generation"] for r in checkpoint.load(tmp_path)["rows"]] == [1]
