@@ -12,7 +12,8 @@ from synthetic_runs import write_run
 from spn_torchrl.analysis import energy, paper
 from spn_torchrl.analysis.collect import MAX_BYTES
 from spn_torchrl.analysis.energy import sig
-from spn_torchrl.analysis.reproduction import COMMAND, PAPER_R_SOURCE, build_reproduction
+from spn_torchrl.analysis.reproduction import COMMAND, PAPER_R_SOURCE, build_reproduction, ppo_seeds
+from spn_torchrl.analysis.runs import find_runs
 from spn_torchrl.analysis.stats import sample_sd, verdict, welch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -168,6 +169,23 @@ def test_connections_ppo_is_judged_on_its_evals_not_the_iterations_between(tmp_p
     row = claim(build_reproduction([runs], tmp_path / "out"), "Connections-PPO does not converge on HalfCheetah")
     assert row["ours"].startswith("eval -400.0 at iteration 2, 1500 at 6 (does not decrease); R = 3000.00")
     assert row["status"] == "confirmed"
+
+
+def test_each_ppo_seed_is_tabled_from_its_evals(tmp_path):
+    """Where a PPO seed's evals start, peak and end, read past the NaN rows between evals."""
+    runs = tmp_path / "runs"
+    nan = float("nan")
+    returns = [nan, 10.0, nan, 50.0, nan, 30.0, nan, 20.0, 45.0, 40.0]
+    write_run(runs, "swimmer", "Swimmer-v5", "conn_ppo", 0, returns, kind="ppo", total_env_steps=10000)
+    [run] = find_runs([runs])
+    seed = ppo_seeds(run, tail=0.2)
+    assert (seed["first"], seed["first_steps"], seed["best"], seed["best_steps"]) == (10.0, 2000, 50.0, 4000)
+    assert (seed["tail_min"], seed["tail_max"], seed["final"], seed["final_steps"]) == (40.0, 45.0, 40.0, 10000)
+    result = build_reproduction([runs], tmp_path / "out")
+    assert result["ppo_seeds"]["swimmer"]["conn_ppo"] == [ppo_seeds(run)]
+    md = Path(result["markdown"]).read_text()
+    assert "Connections-PPO, seed by seed (eval returns, at env steps):" in md
+    assert "| 0 | 10.0 at 2k | 50.0 at 4k | 40.0 - 40.0 | 40.0 | 0.80 |" in md
 
 
 def test_the_committed_reproduction_is_what_its_committed_runs_give(tmp_path):

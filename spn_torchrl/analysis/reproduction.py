@@ -2,7 +2,8 @@
 
 ``python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/`` writes
 ``reproduction/README.md`` (``PREFACE.md`` of the same directory verbatim at the top, if there is one), one PNG
-per task and ``report.json``. Only runs that reached their budget are pooled; the others are listed apart. Our
+per task and ``report.json``, with each PPO seed's evals tabled (first, best, last, the range at the end).
+Only runs that reached their budget are pooled; the others are listed apart. Our
 seeds are tested against the paper's 10 seeds by Welch's two-sided t-test from summary statistics (alpha 0.05).
 """
 
@@ -13,6 +14,8 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from spn_torchrl.analysis import paper
 from spn_torchrl.analysis.energy import first_generation_at, sig
@@ -313,8 +316,11 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
     return lines + ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
 
 
-def comparison_markdown(env: str, s: dict[str, Any], figure: str | None) -> tuple[list[str], list[dict[str, Any]]]:
-    """One task's section: our last generation against the paper's, per method, and the learning curves."""
+def comparison_markdown(
+    env: str, s: dict[str, Any], figure: str | None, seeds: dict[str, list[dict[str, Any]]]
+) -> tuple[list[str], list[dict[str, Any]]]:
+    """One task's section: our last generation against the paper's, per method, the learning curves and each PPO
+    method's ``seeds`` (from :func:`ppo_seeds`)."""
     out = [f"## {_title(env)} ({s['env_id']}, n={s['n']}, m={s['m']})", ""]
     if figure:
         out += [f"![learning curves]({figure})", ""]
@@ -363,7 +369,54 @@ def comparison_markdown(env: str, s: dict[str, Any], figure: str | None) -> tupl
     level = s["ppo_level"]
     if level is not None or env in paper.PPO_LEVEL:
         out += ["", f"PPO level R: {level_text(level)} ({s['ppo_level_source']})."]
+    for algo, rows in seeds.items():
+        out += [""] + ppo_seeds_markdown(algo, rows)
     return out + [""], data
+
+
+def _steps(steps: float) -> str:
+    """Env steps as the seed tables print them: ``10k``, ``1M``."""
+    return f"{steps / 1e6:g}M" if steps >= 1e6 else f"{steps / 1e3:g}k"
+
+
+def ppo_seeds(run: RunRecord, tail: float = 0.1) -> dict[str, Any]:
+    """One PPO run's evals: the first, the best, the range over its last ``tail`` of env steps, the last (each eval
+    with the env steps it was taken at)."""
+    steps, returns = run.column("total_env_steps"), run.column("eval_return")
+    evals = ~np.isnan(returns)
+    steps, returns = steps[evals], returns[evals]
+    best = int(np.argmax(returns))
+    late = returns[steps > steps[-1] * (1 - tail)]
+    return {
+        "seed": run.seed,
+        "first": float(returns[0]),
+        "first_steps": float(steps[0]),
+        "best": float(returns[best]),
+        "best_steps": float(steps[best]),
+        "tail_min": float(late.min()),
+        "tail_max": float(late.max()),
+        "final": float(returns[-1]),
+        "final_steps": float(steps[-1]),
+    }
+
+
+def ppo_seeds_markdown(algo: str, seeds: Sequence[dict[str, Any]]) -> list[str]:
+    """A PPO method's seeds, one row each: where its evals start, peak and end."""
+    rows = [
+        [
+            s["seed"],
+            f"{_value(s['first'], s['best'])} at {_steps(s['first_steps'])}",
+            f"{_value(s['best'])} at {_steps(s['best_steps'])}",
+            f"{_value(s['tail_min'], s['best'])} - {_value(s['tail_max'], s['best'])}",
+            _value(s["final"], s["best"]),
+            f"{s['final'] / s['best']:.2f}" if s["best"] > 0 else "-",
+        ]
+        for s in seeds
+    ]
+    header = ["seed", "first eval", "best eval", "last 10% of env steps: min - max", "final", "final / best"]
+    return [f"{paper.METHOD_TITLES.get(algo, algo)}, seed by seed (eval returns, at env steps):", ""] + _table(
+        header, rows
+    )
 
 
 def _commits(runs: Sequence[RunRecord]) -> list[str]:
@@ -417,16 +470,20 @@ def build_reproduction(
         'published R (Gym v2), labelled "paper\'s R".',
         "",
     ]
+    seeds: dict[str, dict[str, list[dict[str, Any]]]] = {}
+    for run in finished:
+        if run.kind == "ppo":
+            seeds.setdefault(run.env, {}).setdefault(run.algo, []).append(ppo_seeds(run))
     comparisons = {}
     for env, summary in tasks.items():
         figure = Path(figures[env]).name if env in figures else None
-        section, comparisons[env] = comparison_markdown(env, summary, figure)
+        section, comparisons[env] = comparison_markdown(env, summary, figure, seeds.get(env, {}))
         lines += section
     lines += ["## Details per task (the report's own tables: data efficiency, energy)", ""]
     for summary in tasks.values():
         lines += ["#" + line if line.startswith("#") else line for line in task_markdown(summary, None)]
     (out / "README.md").write_text("\n".join(lines).rstrip() + "\n")
-    payload = {"tasks": tasks, "comparisons": comparisons, "claims": claim_rows}
+    payload = {"tasks": tasks, "comparisons": comparisons, "claims": claim_rows, "ppo_seeds": seeds}
     (out / "report.json").write_text(json.dumps(payload, indent=2, default=float))
     return {
         "tasks": tasks,
@@ -434,5 +491,6 @@ def build_reproduction(
         "markdown": str(out / "README.md"),
         "claims": claim_rows,
         "comparisons": comparisons,
+        "ppo_seeds": seeds,
         "stopped": [left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in runs if not run.finished],
     }
