@@ -179,6 +179,8 @@ def test_each_ppo_seed_is_tabled_from_its_evals(tmp_path):
     write_run(runs, "swimmer", "Swimmer-v5", "conn_ppo", 0, returns, kind="ppo", total_env_steps=10000)
     [run] = find_runs([runs])
     seed = ppo_seeds(run, tail=0.2)
+    no_eval = write_run(tmp_path / "no_eval", "swimmer", "Swimmer-v5", "conn_ppo", 1, [nan], kind="ppo")
+    assert ppo_seeds(find_runs([no_eval])[0]) is None
     assert (seed["first"], seed["first_steps"], seed["best"], seed["best_steps"]) == (10.0, 2000, 50.0, 4000)
     assert (seed["tail_min"], seed["tail_max"], seed["final"], seed["final_steps"]) == (40.0, 45.0, 40.0, 10000)
     result = build_reproduction([runs], tmp_path / "out")

@@ -2,9 +2,9 @@
 
 ``python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/`` writes
 ``reproduction/README.md`` (``PREFACE.md`` of the same directory verbatim at the top, if there is one), one PNG
-per task and ``report.json``, with each PPO seed's evals tabled (first, best, last, the range at the end).
-Only runs that reached their budget are pooled; the others are listed apart. Our
-seeds are tested against the paper's 10 seeds by Welch's two-sided t-test from summary statistics (alpha 0.05).
+per task and ``report.json``, with each PPO seed's evals tabled (first, best, last, the range at the end). Only
+runs that reached their budget are pooled; the others are listed apart. Our seeds are tested against the paper's 10
+seeds by Welch's two-sided t-test from summary statistics (alpha 0.05).
 """
 
 from __future__ import annotations
@@ -379,11 +379,13 @@ def _steps(steps: float) -> str:
     return f"{steps / 1e6:g}M" if steps >= 1e6 else f"{steps / 1e3:g}k"
 
 
-def ppo_seeds(run: RunRecord, tail: float = 0.1) -> dict[str, Any]:
+def ppo_seeds(run: RunRecord, tail: float = 0.1) -> dict[str, Any] | None:
     """One PPO run's evals: the first, the best, the range over its last ``tail`` of env steps, the last (each eval
-    with the env steps it was taken at)."""
+    with the env steps it was taken at); None for a run that logged no eval."""
     steps, returns = run.column("total_env_steps"), run.column("eval_return")
     evals = ~np.isnan(returns)
+    if not evals.any():
+        return None
     steps, returns = steps[evals], returns[evals]
     best = int(np.argmax(returns))
     late = returns[steps > steps[-1] * (1 - tail)]
@@ -472,8 +474,9 @@ def build_reproduction(
     ]
     seeds: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for run in finished:
-        if run.kind == "ppo":
-            seeds.setdefault(run.env, {}).setdefault(run.algo, []).append(ppo_seeds(run))
+        row = ppo_seeds(run) if run.kind == "ppo" else None
+        if row is not None:
+            seeds.setdefault(run.env, {}).setdefault(run.algo, []).append(row)
     comparisons = {}
     for env, summary in tasks.items():
         figure = Path(figures[env]).name if env in figures else None
