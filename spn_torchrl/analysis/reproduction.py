@@ -32,6 +32,7 @@ from spn_torchrl.analysis.stats import ALPHA, p_text, sample_sd, verdict, welch
 
 COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
 CONFIRMED, NOT_CONFIRMED, NOT_RUN = "confirmed", "not confirmed", "not yet run"
+TAIL = 0.1  # the share of a PPO run's env steps whose evals the seed tables span
 PAPER_R_SOURCE = "paper's R (Table 1: DPN-PPO after 1e6 steps on Gym v2; no finished dpn_ppo run here)"
 
 
@@ -379,7 +380,7 @@ def _steps(steps: float) -> str:
     return f"{steps / 1e6:g}M" if steps >= 1e6 else f"{steps / 1e3:g}k"
 
 
-def ppo_seeds(run: RunRecord, tail: float = 0.1) -> dict[str, Any] | None:
+def ppo_seeds(run: RunRecord, tail: float = TAIL) -> dict[str, Any] | None:
     """One PPO run's evals: the first, the best, the range over its last ``tail`` of env steps, the last (each eval
     with the env steps it was taken at); None for a run that logged no eval."""
     steps, returns = run.column("total_env_steps"), run.column("eval_return")
@@ -415,7 +416,7 @@ def ppo_seeds_markdown(algo: str, seeds: Sequence[dict[str, Any]]) -> list[str]:
         ]
         for s in seeds
     ]
-    header = ["seed", "first eval", "best eval", "last 10% of env steps: min - max", "final", "final / best"]
+    header = ["seed", "first eval", "best eval", f"last {TAIL:.0%} of env steps: min - max", "final", "final / best"]
     return [f"{paper.METHOD_TITLES.get(algo, algo)}, seed by seed (eval returns, at env steps):", ""] + _table(
         header, rows
     )
