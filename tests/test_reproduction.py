@@ -14,7 +14,7 @@ from spn_torchrl.analysis.collect import MAX_BYTES
 from spn_torchrl.analysis.energy import sig
 from spn_torchrl.analysis.reproduction import COMMAND, PAPER_R_SOURCE, build_reproduction, ppo_seeds
 from spn_torchrl.analysis.runs import find_runs
-from spn_torchrl.analysis.stats import sample_sd, verdict, welch
+from spn_torchrl.analysis.stats import one_value, sample_sd, verdict, welch
 
 ROOT = Path(__file__).resolve().parents[1]
 CONN_FINAL = [2700.0, 2800.0, 2900.0]
@@ -113,6 +113,35 @@ def test_a_deliberately_shortened_budget_is_labelled(result):
     assert row["generation"] == 20 and row["verdict"].startswith("ours at generation 20 vs the paper's at 100: ")
     md = Path(result["markdown"]).read_text()
     assert "Connections-GA: (deliberately shortened budget: 20 of the paper's 100 generations)." in md
+
+
+def test_a_seed_that_went_on_is_pooled_to_the_common_generation_and_is_also_its_own_row(tmp_path):
+    """HumanoidStandup at 20 generations for most seeds, one seed on to the paper's 100: the pool's numbers stay
+    those of generation 20 (shortened), the long seed is tested alone against the paper's generation 100."""
+    runs = tmp_path / "runs"
+    for seed in (0, 1, 2):
+        write_run(runs, "humanoidstandup", "HumanoidStandup-v5", "conn_ga", seed, curve(1.2e5 + seed, 20))
+    long = curve(1.2e5 + 3, 20) + list(np.linspace(1.3e5, 1.5e5, 80))
+    write_run(runs, "humanoidstandup", "HumanoidStandup-v5", "conn_ga", 3, long)
+    result = build_reproduction([runs], tmp_path / "out")
+    m = result["tasks"]["humanoidstandup"]["methods"]["conn_ga"]
+    assert (m["seeds"], m["rows"], m["budget"]["generations"]) == ([0, 1, 2, 3], 20, 20)
+    assert m["final_return_mean"] == pytest.approx(1.2e5 + 1.5)
+    [longer] = m["longer"]
+    assert (longer["seeds"], longer["rows"], longer["final_return_mean"]) == ([3], 100, 1.5e5)
+    pool, own = result["comparisons"]["humanoidstandup"]
+    assert pool["generation"] == 20 and pool["verdict"].startswith("ours at generation 20 vs the paper's at 100: ")
+    published = paper.FINAL[("humanoidstandup", "conn_ga")]
+    expected = one_value(1.5e5, published.mean, sample_sd(published.std, 10), 10)
+    assert own["generation"] == 100 and not own["shortened"] and own["p"] == pytest.approx(expected.p)
+    assert own["verdict"] == verdict(expected) + " (one seed: t-test of a new value)"
+    md = Path(result["markdown"]).read_text()
+    row = (
+        f"| Connections-GA: seed(s) 3 alone | 1 | 100 | 150000 | 150000 - 150000 | 150800 +- 9072 | {own['verdict']} |"
+    )
+    assert row in md
+    assert "Connections-GA: seed(s) 3 went on to generation 100; the Connections-GA row above pools" in md
+    assert "the curve and numbers are cut at the 20 every run reached (seeds [3] to 100: the dashed line)" in md
 
 
 @pytest.mark.slow  # processes or a CLI in a subprocess

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from spn_torchrl.analysis.stats import betainc, p_text, sample_sd, t_cdf, verdict, welch
+from spn_torchrl.analysis.stats import betainc, one_value, p_text, sample_sd, t_cdf, verdict, welch
 
 
 @pytest.mark.parametrize(
@@ -66,6 +66,18 @@ def test_welch_constant_samples():
     assert welch(499, 0, 10, 500, 0, 10).p == 0.0
     with pytest.raises(ValueError):
         welch(1, 1, 1, 2, 1, 10)
+
+
+def test_one_value_against_a_sample_is_the_prediction_interval_test():
+    # at the edge of the 95% prediction interval of a sample of 10 (mean 10, sd 2): 2.262157 is t(9)'s 97.5% quantile
+    edge = 10 + 2.262157163 * 2 * math.sqrt(1 + 1 / 10)
+    assert one_value(edge, 10, 2, 10).p == pytest.approx(0.05, abs=1e-8)
+    low = one_value(4, 10, 2, 10)
+    assert low.df == 9 and low.diff == -6 and low.t == pytest.approx(-3 / math.sqrt(1.1))
+    assert verdict(low).startswith("lower than the paper, p = 0.0")
+    assert one_value(500, 500, 0, 10).p == 1.0 and one_value(499, 500, 0, 10).p == 0.0
+    with pytest.raises(ValueError):
+        one_value(1, 1, 1, 1)
 
 
 def test_verdict_sentences():

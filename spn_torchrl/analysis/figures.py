@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
-from spn_torchrl.analysis.runs import RunRecord, mean_std, pooled  # noqa: E402
+from spn_torchrl.analysis.runs import RunRecord, longer_groups, mean_std, pooled  # noqa: E402
 
 COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red", "conn_ppo": "tab:green"}
 
@@ -24,6 +24,21 @@ def _band(ax, x, runs: Sequence[RunRecord], label: str, color: str | None) -> No
     x, mean, std = np.asarray(x)[evaluated], mean[evaluated], std[evaluated]
     line = ax.plot(x, mean, label=f"{label} ({len(runs)} seed(s))", color=color)[0]
     ax.fill_between(x, mean - std / 2, mean + std / 2, alpha=0.25, color=line.get_color(), linewidth=0)
+
+
+def _longer(ax, x_name: str, runs: Sequence[RunRecord], label: str, color: str | None) -> None:
+    """The runs that went past the pooled rows, over their whole length: a dashed mean line per length."""
+    for group in longer_groups(runs):
+        x = pooled(group, x_name).mean(axis=0)
+        seeds = ", ".join(str(run.seed) for run in group)
+        ax.plot(
+            x,
+            pooled(group, "eval_return").mean(axis=0),
+            color=color,
+            linestyle="--",
+            linewidth=1,
+            label=f"{label}: seed(s) {seeds} on to {len(group[0].rows)}",
+        )
 
 
 def task_figure(
@@ -47,6 +62,8 @@ def task_figure(
         steps = pooled(runs, "total_env_steps").mean(axis=0)
         if runs[0].kind == "ga":
             _band(by_gen, pooled(runs, "generation")[0], runs, algo, color)
+            _longer(by_gen, "generation", runs, algo, color)
+            _longer(by_steps, "total_env_steps", runs, algo, color)
             generation = (reached or {}).get(algo)
             if generation is not None:
                 by_gen.axvline(
@@ -83,7 +100,10 @@ def task_figure(
     by_steps.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short range
     by_gen.set_title(f"{title}: return vs generation (GA)")
     by_steps.set_title(f"{title}: return vs env steps")
-    fig.text(0.5, 0.005, "line: mean over seeds; band: +- half a std over seeds", ha="center", fontsize=8)
+    caption = "line: mean over seeds; band: +- half a std over seeds"
+    if any(longer_groups(runs) for runs in algos.values() if runs[0].kind == "ga"):
+        caption += "; dashed: the runs that went on past the rest"
+    fig.text(0.5, 0.005, caption, ha="center", fontsize=8)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

@@ -25,6 +25,7 @@ from spn_torchrl.analysis.runs import (
     find_runs,
     group_runs,
     last_value,
+    longer_groups,
     pool_choice,
     pooled,
     split_finished,
@@ -69,10 +70,12 @@ def left_out_entry(run: RunRecord) -> dict[str, Any]:
 def method_summary(runs: Sequence[RunRecord], left_out: Sequence[RunRecord] = ()) -> dict[str, Any]:
     """Seeds, length, env steps and final return (mean, std and range over seeds) of one method on one task.
 
-    ``runs`` are the pooled runs (cut to the rows they all reached), ``left_out`` the runs listed apart.
+    ``runs`` are the pooled runs (cut to the rows they all reached), ``left_out`` the runs listed apart; ``longer``
+    summarises, the same way, the runs that went past that row (grouped by length), and ``budget`` is the shortest
+    run's.
     """
     final = pooled(runs, "eval_return")[:, -1]
-    algo = runs[0].config.algo
+    algo = min(runs, key=lambda run: len(run.rows)).config.algo
     keys = ("generations", "population", "elite_candidates", "elite_episodes", "total_env_steps")
     return {
         "kind": runs[0].kind,
@@ -91,6 +94,7 @@ def method_summary(runs: Sequence[RunRecord], left_out: Sequence[RunRecord] = ()
         "final_return_max": float(final.max()),
         "return_mean_curve": [float(v) for v in pooled(runs, "eval_return").mean(axis=0)],
         "runs": [shown_path(run.path) for run in runs],
+        "longer": [method_summary(group) for group in longer_groups(runs)],
     }
 
 
@@ -282,8 +286,12 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
                 f"- **{algo}: no run reached its budget**; its curve and numbers pool every run over the "
                 f"{m['rows']} {'generations' if m['kind'] == 'ga' else 'iterations'} all of them reached: {_progress_list(m['unfinished_pooled'])}."
             )
-        elif len(m["rows_per_run"]) > 1:
-            out.append(f"- {algo}: runs of different lengths {m['rows_per_run']}; the curve is cut at {m['rows']}.")
+        elif m["longer"]:
+            went_on = "; ".join(f"seeds {g['seeds']} to {g['rows']}" for g in m["longer"])
+            out.append(
+                f"- {algo}: runs of different lengths; the curve and numbers are cut at the {m['rows']} every run "
+                f"reached ({went_on}: the dashed line)."
+            )
         if m["left_out"]:
             out.append(
                 f"- {algo}: left out (stopped before their budget): {_progress_list(m['left_out'])}; "

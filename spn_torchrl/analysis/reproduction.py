@@ -3,8 +3,10 @@
 ``python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/`` writes
 ``reproduction/README.md`` (``PREFACE.md`` of the same directory verbatim at the top, if there is one), one PNG
 per task and ``report.json``, with each PPO seed's evals tabled (first, best, last, the range at the end). Only
-runs that reached their budget are pooled; the others are listed apart. Our seeds are tested against the paper's 10
-seeds by Welch's two-sided t-test from summary statistics (alpha 0.05).
+runs that reached their budget are pooled; the others are listed apart. A method's runs are pooled over the generations
+they all reached, and the runs that went on are their own row. Our seeds are tested against the paper's 10 seeds by
+Welch's two-sided t-test from summary statistics (one seed: the t-test of a new value against the paper's sample),
+alpha 0.05.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from spn_torchrl.analysis.report import (
     task_markdown,
 )
 from spn_torchrl.analysis.runs import RunRecord
-from spn_torchrl.analysis.stats import ALPHA, p_text, sample_sd, verdict, welch
+from spn_torchrl.analysis.stats import ALPHA, one_value, p_text, sample_sd, verdict, welch
 
 COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
 CONFIRMED, NOT_CONFIRMED, NOT_RUN = "confirmed", "not confirmed", "not yet run"
@@ -103,19 +105,15 @@ def against_paper(env: str, algo: str, m: dict[str, Any]) -> dict[str, Any]:
     if published is None:
         row["verdict"] = "no published figure"
         return row
+    paper_sd = sample_sd(published.std, published.n)
     if len(m["seeds"]) < 2:
-        row["verdict"] = "not tested (one seed)"
-        return row
-    test = welch(
-        m["final_return_mean"],
-        m["final_return_sd"],
-        len(m["seeds"]),
-        published.mean,
-        sample_sd(published.std, published.n),
-        published.n,
-    )
+        test = one_value(m["final_return_mean"], published.mean, paper_sd, published.n)
+    else:
+        test = welch(
+            m["final_return_mean"], m["final_return_sd"], len(m["seeds"]), published.mean, paper_sd, published.n
+        )
     row.update(t=test.t, df=test.df, p=test.p)
-    text = verdict(test)
+    text = verdict(test) + (" (one seed: t-test of a new value)" if len(m["seeds"]) < 2 else "")
     if m["kind"] == "ga" and m["rows"] != paper.GENERATIONS:
         text = f"ours at generation {m['rows']} vs the paper's at {paper.GENERATIONS}: {text}"
     row["verdict"] = text
@@ -326,21 +324,23 @@ def comparison_markdown(
     if figure:
         out += [f"![learning curves]({figure})", ""]
     rows, data = [], []
-    for algo, m in s["methods"].items():
-        row = against_paper(env, algo, m)
-        data.append(row)
-        published = row["paper"]
-        rows.append(
-            [
-                paper.METHOD_TITLES.get(algo, algo),
-                row["seeds"],
-                f"{row['generation']}{' (shortened, deliberate)' if row['shortened'] else ''}",
-                _pm(row["mean"], row["std"]),
-                f"{_value(row['min'])} - {_value(row['max'])}",
-                "-" if published is None else _pm(published["mean"], published["std"]),
-                row["verdict"],
-            ]
-        )
+    for algo, method in s["methods"].items():
+        for m in (method, *method["longer"]):
+            row = against_paper(env, algo, m)
+            data.append(row)
+            published = row["paper"]
+            title = paper.METHOD_TITLES.get(algo, algo)
+            rows.append(
+                [
+                    title if m is method else f"{title}: seed(s) {', '.join(map(str, m['seeds']))} alone",
+                    row["seeds"],
+                    f"{row['generation']}{' (shortened, deliberate)' if row['shortened'] else ''}",
+                    _value(row["mean"]) if row["seeds"] == 1 else _pm(row["mean"], row["std"]),
+                    f"{_value(row['min'])} - {_value(row['max'])}",
+                    "-" if published is None else _pm(published["mean"], published["std"]),
+                    row["verdict"],
+                ]
+            )
     if env in paper.PPO_LEVEL and PPO_LEVEL_ALGO not in s["methods"]:
         rows.append(["DPN-PPO", 0, "-", "not yet run", "-", f"R = {paper.PPO_LEVEL[env]:g} (mean only)", "-"])
     out += _table(
@@ -356,8 +356,16 @@ def comparison_markdown(
         rows,
     )
     for algo, m in s["methods"].items():
+        title = paper.METHOD_TITLES.get(algo, algo)
         if _shortened(m):
-            out += ["", f"{paper.METHOD_TITLES.get(algo, algo)}:{_shortened(m)}."]
+            out += ["", f"{title}:{_shortened(m)}."]
+        for group in m["longer"]:
+            ran_on = ", ".join(map(str, group["seeds"]))
+            out += [
+                "",
+                f"{title}: seed(s) {ran_on} went on to generation {group['rows']}; the {title} row above pools "
+                f"their first {m['rows']} generations with the other seeds', the row named for them is their own.",
+            ]
     left = [(algo, e) for algo, m in s["methods"].items() for e in m["left_out"]]
     left += [(algo, e) for algo, entries in s["left_out"].items() for e in entries]
     if left:

@@ -135,6 +135,13 @@ def common_length(runs: Sequence[RunRecord]) -> int:
     return min(len(run.rows) for run in runs)
 
 
+def longer_groups(runs: Sequence[RunRecord]) -> list[list[RunRecord]]:
+    """The runs of ``runs`` that went past the rows every run reached, grouped by their length (shortest first)."""
+    common = common_length(runs)
+    lengths = sorted({len(run.rows) for run in runs} - {common})
+    return [[run for run in runs if len(run.rows) == length] for length in lengths]
+
+
 def pooled(runs: Sequence[RunRecord], name: str) -> np.ndarray:
     """Column ``name`` of every run stacked as [seeds, rows], cut to the rows every run reached."""
     length = common_length(runs)

@@ -1,4 +1,5 @@
-"""Welch's t-test from summary statistics, with the Student t CDF from the regularized incomplete beta function.
+"""Welch's t-test from summary statistics (and one value's test against a sample), with the Student t CDF from the
+regularized incomplete beta function.
 
 Plain ``math``: no scipy. ``betainc`` is the continued fraction of Numerical Recipes (Lentz's method), accurate
 to about 1e-12 for the degrees of freedom a seed count gives.
@@ -56,16 +57,16 @@ def t_cdf(t: float, df: float) -> float:
 
 
 @dataclass(frozen=True)
-class Welch:
-    """Welch's two-sided t-test of sample 1 against sample 2."""
+class TTest:
+    """A two-sided t-test of sample 1 (or one value) against sample 2."""
 
     t: float
     df: float
     p: float
-    diff: float  # mean 1 - mean 2
+    diff: float  # mean 1 (or the value) - mean 2
 
 
-def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) -> Welch:
+def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) -> TTest:
     """Welch's t-test from means, sample standard deviations (ddof=1) and sizes (each at least 2).
 
     Two equal constant samples give p = 1; two different constant samples p = 0.
@@ -75,10 +76,23 @@ def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) 
     v1, v2 = sd1 * sd1 / n1, sd2 * sd2 / n2
     diff = mean1 - mean2
     if v1 + v2 == 0:
-        return Welch(0.0 if diff == 0 else math.copysign(math.inf, diff), math.inf, 1.0 if diff == 0 else 0.0, diff)
+        return TTest(0.0 if diff == 0 else math.copysign(math.inf, diff), math.inf, 1.0 if diff == 0 else 0.0, diff)
     t = diff / math.sqrt(v1 + v2)
     df = (v1 + v2) ** 2 / ((v1 * v1 / (n1 - 1) if v1 else 0.0) + (v2 * v2 / (n2 - 1) if v2 else 0.0))
-    return Welch(t, df, 2.0 * t_cdf(-abs(t), df), diff)
+    return TTest(t, df, 2.0 * t_cdf(-abs(t), df), diff)
+
+
+def one_value(value: float, mean: float, sd: float, n: int) -> TTest:
+    """The t-test of one new value against a sample of ``n`` (at least 2) with ``mean`` and sample std ``sd``
+    (ddof=1): t = (value - mean) / (sd * sqrt(1 + 1/n)) with n - 1 degrees of freedom, the prediction interval's
+    test. A value equal to a constant sample's mean gives p = 1, any other p = 0."""
+    if n < 2:
+        raise ValueError(f"a value's t-test needs a sample of at least 2, got {n}")
+    diff = value - mean
+    if sd == 0:
+        return TTest(0.0 if diff == 0 else math.copysign(math.inf, diff), n - 1, 1.0 if diff == 0 else 0.0, diff)
+    t = diff / (sd * math.sqrt(1.0 + 1.0 / n))
+    return TTest(t, n - 1, 2.0 * t_cdf(-abs(t), n - 1), diff)
 
 
 def sample_sd(population_sd: float, n: int) -> float:
@@ -93,7 +107,7 @@ def p_text(p: float) -> str:
     return f"p = {p:.2g}"
 
 
-def verdict(test: Welch, than: str = "the paper", alpha: float = ALPHA) -> str:
+def verdict(test: TTest, than: str = "the paper", alpha: float = ALPHA) -> str:
     """One plain sentence part: ``consistent with the paper (p = 0.31)`` or ``lower than the paper, p = 0.002``."""
     if test.p >= alpha:
         return f"consistent with {than} ({p_text(test.p)})"
