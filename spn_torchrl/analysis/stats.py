@@ -66,6 +66,14 @@ class TTest:
     diff: float  # mean 1 (or the value) - mean 2
 
 
+def _t_test(diff: float, se: float, df: float) -> TTest:
+    """The two-sided test of ``diff`` with standard error ``se``; a zero ``se`` gives p = 1 for no difference, else 0."""
+    if se == 0:
+        return TTest(0.0 if diff == 0 else math.copysign(math.inf, diff), df, 1.0 if diff == 0 else 0.0, diff)
+    t = diff / se
+    return TTest(t, df, 2.0 * t_cdf(-abs(t), df), diff)
+
+
 def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) -> TTest:
     """Welch's t-test from means, sample standard deviations (ddof=1) and sizes (each at least 2).
 
@@ -74,12 +82,10 @@ def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) 
     if n1 < 2 or n2 < 2:
         raise ValueError(f"Welch's test needs at least 2 values per sample, got {n1} and {n2}")
     v1, v2 = sd1 * sd1 / n1, sd2 * sd2 / n2
-    diff = mean1 - mean2
     if v1 + v2 == 0:
-        return TTest(0.0 if diff == 0 else math.copysign(math.inf, diff), math.inf, 1.0 if diff == 0 else 0.0, diff)
-    t = diff / math.sqrt(v1 + v2)
+        return _t_test(mean1 - mean2, 0.0, math.inf)
     df = (v1 + v2) ** 2 / ((v1 * v1 / (n1 - 1) if v1 else 0.0) + (v2 * v2 / (n2 - 1) if v2 else 0.0))
-    return TTest(t, df, 2.0 * t_cdf(-abs(t), df), diff)
+    return _t_test(mean1 - mean2, math.sqrt(v1 + v2), df)
 
 
 def one_value(value: float, mean: float, sd: float, n: int) -> TTest:
@@ -88,11 +94,7 @@ def one_value(value: float, mean: float, sd: float, n: int) -> TTest:
     test. A value equal to a constant sample's mean gives p = 1, any other p = 0."""
     if n < 2:
         raise ValueError(f"a value's t-test needs a sample of at least 2, got {n}")
-    diff = value - mean
-    if sd == 0:
-        return TTest(0.0 if diff == 0 else math.copysign(math.inf, diff), n - 1, 1.0 if diff == 0 else 0.0, diff)
-    t = diff / (sd * math.sqrt(1.0 + 1.0 / n))
-    return TTest(t, n - 1, 2.0 * t_cdf(-abs(t), n - 1), diff)
+    return _t_test(value - mean, sd * math.sqrt(1.0 + 1.0 / n), n - 1)
 
 
 def sample_sd(population_sd: float, n: int) -> float:
