@@ -57,7 +57,7 @@ def test_steps_match_gymnasium(env_id: str) -> None:
         assert np.abs(env.sims.cfrc_ext[:, 1:]).max() > 0
 
 
-@pytest.mark.parametrize("env_id", ["HalfCheetah-v5", "HumanoidStandup-v5"])
+@pytest.mark.parametrize("env_id", ["HalfCheetah-v5", "HumanoidStandup-v5", "Hopper-v5", "Ant-v5"])
 def test_partial_reset_and_step_follow_gymnasium(env_id: str) -> None:
     count, seed = 3, 5
     env = MujocoBatchEnv(env_id, count)
@@ -117,8 +117,10 @@ def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
 
 
 def test_unknown_id_is_a_config_error() -> None:
-    with pytest.raises(ConfigError, match="mujoco_batch steps HalfCheetah-v5, Swimmer-v5, HumanoidStandup-v5 only"):
-        make_transformed_env("Hopper-v5", 2, backend="mujoco_batch")
+    with pytest.raises(
+        ConfigError, match="mujoco_batch steps HalfCheetah-v5, Swimmer-v5, HumanoidStandup-v5, Hopper-v5"
+    ):
+        make_transformed_env("Hopper-v4", 2, backend="mujoco_batch")
 
 
 def test_humanoidstandup_threads_step_the_same_simulations() -> None:
@@ -141,3 +143,84 @@ def test_humanoidstandup_threads_step_the_same_simulations() -> None:
     for env in envs:
         assert 0 < env.physics_seconds
         env.close()
+
+
+LOCOMOTION = ["Hopper-v5", "Walker2d-v5", "Ant-v5", "Humanoid-v5"]
+
+
+@pytest.mark.parametrize("env_id", LOCOMOTION)
+def test_locomotion_matches_gymnasium_through_terminations(env_id: str) -> None:
+    """Random actions on 3 slots for 300 steps, each slot reset (its own generator) when Gymnasium's env
+    terminates: every reset and step observation and reward equal Gymnasium's bit for bit, and so does the
+    healthy-state termination. Every reward term takes part: the healthy reward drops on the terminal steps, and
+    Ant's and Humanoid's contact forces are nonzero in the observation and the contact cost."""
+    count, seed = 3, 3
+    env = MujocoBatchEnv(env_id, count)
+    env.set_seed(seed)
+    env.reset()
+    envs, obs = gym_envs(env_id, count, seed)
+    np.testing.assert_array_equal(env._obs, obs)
+    rng = np.random.default_rng(0)
+    low, high = envs[0].action_space.low, envs[0].action_space.high
+    terminations, contact_seen, ctrl_seen = 0, False, False
+    for _ in range(300):
+        action = rng.uniform(low, high, size=(count, len(low))).astype(np.float32)
+        _, reward, terminated, truncated = env.step_slots(action)
+        for i, genv in enumerate(envs):
+            o, r, gym_terminated, _, info = genv.step(action[i])
+            np.testing.assert_array_equal(env._obs[i], o)
+            assert env._reward[i] == r and reward[i].item() == np.float32(r)
+            assert bool(terminated[i]) == gym_terminated and not truncated[i]
+            assert (info["reward_survive"] == 0) == gym_terminated  # the healthy reward goes with the healthy state
+            contact_seen |= info.get("reward_contact", 0.0) < 0
+            ctrl_seen |= info["reward_ctrl"] < 0
+            if gym_terminated:
+                terminations += 1
+                env.reset(TensorDict({"_reset": torch.arange(count)[:, None] == i}, batch_size=[count]))
+                np.testing.assert_array_equal(env._obs[i], genv.reset()[0])
+    assert terminations >= 10 and ctrl_seen
+    if env_id in ("Ant-v5", "Humanoid-v5"):
+        assert contact_seen and np.abs(env.sims.cfrc_ext[:, 1:]).max() > 0
+    env.close()
+
+
+def test_terminated_slot_stays_out_while_others_run() -> None:
+    """A slot left out of the step mask after its termination keeps its state and reports no reward, while the
+    elapsed-step counter counts only the steps each slot ran."""
+    env = MujocoBatchEnv("Hopper-v5", 2)
+    env.set_seed(0)
+    env.reset()
+    action = np.ones((2, 3), dtype=np.float32)
+    steps, terminated = 0, torch.zeros(2, dtype=torch.bool)
+    while not terminated.any():
+        _, _, terminated, _ = env.step_slots(action)
+        steps += 1
+    assert terminated.tolist() == [True, False] and 1 < steps < 200
+    frozen = env._obs[0].copy()
+    _, reward, terminated, _ = env.step_slots(action[1:], np.array([1]))
+    np.testing.assert_array_equal(env._obs[0], frozen)
+    assert reward[0] == 0 and terminated[0] and env._elapsed.tolist() == [steps, steps + 1]
+
+
+@pytest.mark.parametrize(
+    "env_id,steps", [("Hopper-v5", 200), ("Walker2d-v5", 200), ("Ant-v5", 60), ("Humanoid-v5", 60)]
+)
+def test_locomotion_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
+    """Early-terminating episodes of 3 SPNs on 4 slots through PopulationEvaluator: the same returns (bit for bit)
+    and env steps on both backends, the steps counting only the steps each episode ran."""
+    torch.set_num_threads(1)
+    spec = task_spec(env_id)
+    gen = torch.Generator().manual_seed(1)
+    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, 64, gen)
+    spn = PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
+    genomes = torch.randn(3, spn.genome_size, generator=gen)
+    results = {}
+    for backend in ("gymnasium", "mujoco_batch"):
+        evaluator = PopulationEvaluator(make_transformed_env(env_id, 4, backend=backend), spn, steps)
+        results[backend] = evaluator(genomes, 123)
+        evaluator.close()
+    ref, got = results["gymnasium"], results["mujoco_batch"]
+    assert torch.equal(got.steps, ref.steps) and torch.equal(got.returns, ref.returns)
+    assert torch.equal(got.spikes, ref.spikes)
+    assert got.total_steps == int(got.steps.sum()) < 3 * steps  # some episode ended early
+    assert ref.returns.std() > 0

@@ -1,10 +1,12 @@
 """TorchRL envs of P copies of a Gymnasium v5 MuJoCo task, stepped on C threads.
 
-Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup: observation, reward
-terms, reset distribution and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and
-masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. HalfCheetah and Swimmer step in one ``mujoco.batch.Batch``
-call; HumanoidStandup, whose observation and reward need ``mj_rnePostConstraint`` after every step, steps one
-``MjData`` per simulation on a thread pool (:class:`DataSimulations`), so that the call runs in place.
+Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup, and of the locomotion tasks
+Hopper, Walker2d, Ant and Humanoid (their terms in :mod:`spn_torchrl.envs.locomotion`, with the healthy-state
+termination): observation, reward terms, reset distribution and seeding, frame skip and the 1000-step time limit
+(truncation); slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. HalfCheetah, Swimmer, Hopper
+and Walker2d step in one ``mujoco.batch.Batch`` call; HumanoidStandup, Ant and Humanoid, whose observation and
+reward need ``mj_rnePostConstraint`` after every step, step one ``MjData`` per simulation on a thread pool
+(:class:`DataSimulations`), so that the call runs in place.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from torchrl.data import Bounded
 from torchrl.envs import EnvBase
 
 from spn_torchrl.envs.batch import BatchEnv, rows
+from spn_torchrl.envs.locomotion import ANT, HOPPER, HUMANOID, WALKER2D, Walk, com_parts
 from spn_torchrl.errors import ConfigError
 
 
@@ -38,12 +41,18 @@ class BatchTask:
     ctrl_cost_weight: float
     standup: bool = False  # HumanoidStandup: com-based observation, up-height reward, impact cost
     max_episode_steps: int = 1000
+    walk: Walk | None = None  # a locomotion task: its observation, reward and healthy-state termination
 
 
 BATCH_TASKS: dict[str, BatchTask] = {
     "HalfCheetah-v5": BatchTask("half_cheetah.xml", 5, 0.1, "normal", 1, 0.1),
     "Swimmer-v5": BatchTask("swimmer.xml", 4, 0.1, "uniform", 2, 1e-4),
     "HumanoidStandup-v5": BatchTask("humanoidstandup.xml", 5, 1e-2, "uniform", 2, 0.1, standup=True),
+    # the locomotion tasks (hopper_v5.py, walker2d_v5.py, ant_v5.py, humanoid_v5.py): terms in envs/locomotion.py
+    "Hopper-v5": BatchTask("hopper.xml", 4, 5e-3, "uniform", 1, 1e-3, walk=HOPPER),
+    "Walker2d-v5": BatchTask("walker2d_v5.xml", 4, 5e-3, "uniform", 1, 1e-3, walk=WALKER2D),
+    "Ant-v5": BatchTask("ant.xml", 5, 0.1, "normal", 2, 0.5, walk=ANT),
+    "Humanoid-v5": BatchTask("humanoid.xml", 5, 1e-2, "uniform", 2, 0.1, walk=HUMANOID),
 }
 IMPACT_COST_WEIGHT = 0.5e-6
 IMPACT_COST_MAX = 10.0
@@ -62,6 +71,8 @@ def batch_task(env_id: str, backend: str = "mujoco_batch") -> BatchTask:
 
 def observation_size(model: mujoco.MjModel, task: BatchTask) -> int:
     """Length of Gymnasium v5's observation of a task."""
+    if task.walk is not None:
+        return task.walk.size(model)
     size = model.nq - task.skipped_qpos + model.nv
     if task.standup:
         size += (model.nbody - 1) * (10 + 6 + 6) + (model.nv - 6)
@@ -176,8 +187,9 @@ class MujocoBatchEnv(BatchEnv):
         high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
         action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
         super().__init__(num_envs, observation_size(m, task), action_spec, task.max_episode_steps)
-        if task.standup:
-            self.sims = DataSimulations(m, num_envs, num_threads, STANDUP_FIELDS)
+        fields = STANDUP_FIELDS if task.standup else None if task.walk is None else task.walk.fields
+        if fields is not None:
+            self.sims = DataSimulations(m, num_envs, num_threads, fields)
         else:
             self.sims = BatchSimulations(m, num_envs, num_threads)
         self.dt = m.opt.timestep * task.frame_skip
@@ -191,12 +203,9 @@ class MujocoBatchEnv(BatchEnv):
         k = task.skipped_qpos
         parts = [sims.qpos[slots, k:], sims.qvel[slots]]
         if task.standup:
-            parts += [
-                sims.cinert[slots, 1:].reshape(-1, (m.nbody - 1) * 10),
-                sims.cvel[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
-                sims.qfrc_actuator[slots, 6:],
-                sims.cfrc_ext[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
-            ]
+            parts += com_parts(m, sims, slots)
+        if task.walk is not None:  # a locomotion task's own observation
+            parts = task.walk.observe(m, sims, slots)
         if ids is None:
             np.concatenate(parts, axis=1, out=self._obs)
         else:
@@ -212,9 +221,17 @@ class MujocoBatchEnv(BatchEnv):
         slots = rows(ids)
         task, sims = self.task, self.sims
         sims.ctrl[slots] = action
-        if not task.standup:
+        if task.walk is not None:
+            self._x_before[slots] = task.walk.position(self.model, sims, slots)
+        elif not task.standup:
             self._x_before[slots] = sims.qpos[slots, 0]
         self.physics_seconds += sims.step(ids, task.frame_skip)
+        if task.walk is not None:  # forward and healthy rewards, costs; the healthy state ends the episode
+            x_velocity = (task.walk.position(self.model, sims, slots) - self._x_before[slots]) / self.dt
+            self._reward[slots], healthy = task.walk.reward(
+                self.model, sims, slots, action, x_velocity, task.ctrl_cost_weight
+            )
+            self._terminated[slots] = ~healthy
         if task.standup:
             uph = sims.qpos[slots, 2] / self.model.opt.timestep
             quad_ctrl = task.ctrl_cost_weight * np.square(sims.ctrl[slots]).sum(-1)
@@ -222,7 +239,7 @@ class MujocoBatchEnv(BatchEnv):
                 IMPACT_COST_WEIGHT * np.square(sims.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX
             )
             self._reward[slots] = uph - quad_ctrl - impact + 1
-        else:
+        elif task.walk is None:
             # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
             ctrl_cost = task.ctrl_cost_weight * np.square(action).sum(-1)
             self._reward[slots] = (sims.qpos[slots, 0] - self._x_before[slots]) / self.dt - ctrl_cost

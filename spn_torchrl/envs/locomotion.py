@@ -1,0 +1,163 @@
+"""Gymnasium v5's locomotion tasks on the mujoco_batch backend: Hopper, Walker2d, Ant and Humanoid (default kwargs).
+
+Each :class:`Walk` holds what its Gymnasium source (gymnasium/envs/mujoco/hopper_v5.py, walker2d_v5.py, ant_v5.py,
+humanoid_v5.py) computes after ``do_simulation``: the position its forward reward differentiates, the observation,
+and the reward with the healthy state whose loss terminates the episode (``terminate_when_unhealthy=True``). Every
+term is Gymnasium's expression on rows of slots, in its order and dtypes (the control cost of a float32 action is
+float32, as Gymnasium's is), so the envs equal Gymnasium's bit for bit (tests/test_mujoco_batch.py). The
+simulations (``sims``) are :class:`~spn_torchrl.envs.mujoco.BatchSimulations` or, for the tasks that read forces,
+:class:`~spn_torchrl.envs.mujoco.DataSimulations`: [P, ...] arrays of ``qpos``, ``qvel``, ``ctrl`` and ``fields``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+Slots = slice | np.ndarray  # the rows of the stepped simulations (batch.rows)
+
+
+@dataclass(frozen=True)
+class Walk:
+    """A locomotion task's own terms: the position its forward reward differentiates, its observation and its
+    reward with the healthy state that ends an episode."""
+
+    fields: tuple[str, ...] | None  # MjData fields read after mj_rnePostConstraint (DataSimulations); None: Batch
+    position: Callable[[mujoco.MjModel, Any, Slots], np.ndarray]  # (model, sims, slots) -> x [k]
+    observe: Callable[[mujoco.MjModel, Any, Slots], list[np.ndarray]]  # -> the observation's parts, rows [k, ...]
+    # (model, sims, slots, action [k, nu] float32, x_velocity [k], ctrl_cost_weight) -> (reward [k], healthy [k])
+    reward: Callable[[mujoco.MjModel, Any, Slots, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
+    size: Callable[[mujoco.MjModel], int]  # the observation's length
+
+
+def com_parts(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """The com-based part of Humanoid's and HumanoidStandup's observation: ``cinert``, ``cvel``,
+    ``qfrc_actuator[6:]`` and ``cfrc_ext`` of every body but the world."""
+    bodies = model.nbody - 1
+    return [
+        sims.cinert[slots, 1:].reshape(-1, bodies * 10),
+        sims.cvel[slots, 1:].reshape(-1, bodies * 6),
+        sims.qfrc_actuator[slots, 6:],
+        sims.cfrc_ext[slots, 1:].reshape(-1, bodies * 6),
+    ]
+
+
+def com_size(model: mujoco.MjModel) -> int:
+    """Length of the Humanoid observation: qpos[2:], qvel and :func:`com_parts`."""
+    return model.nq - 2 + model.nv + (model.nbody - 1) * (10 + 6 + 6) + (model.nv - 6)
+
+
+def _qpos_x(model: mujoco.MjModel, sims: Any, slots: Slots) -> np.ndarray:
+    return sims.qpos[slots, 0]
+
+
+def _planar_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """Hopper's and Walker2d's ``_get_obs``: qpos[1:] and qvel clipped to [-10, 10]."""
+    return [sims.qpos[slots, 1:], np.clip(sims.qvel[slots], -10, 10)]
+
+
+def _planar_size(model: mujoco.MjModel) -> int:
+    return model.nq - 1 + model.nv
+
+
+def _planar_reward(
+    healthy: np.ndarray, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> np.ndarray:
+    """Hopper's and Walker2d's ``_get_rew``: forward (weight 1) + healthy (1 while healthy) - control cost."""
+    rewards = 1.0 * x_velocity + healthy * 1.0
+    return rewards - ctrl_cost_weight * np.sum(np.square(action), axis=-1)
+
+
+def _hopper_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """hopper_v5: healthy while every state but x and z is in (-100, 100), z in (0.7, inf), angle in (-0.2, 0.2)."""
+    qpos, qvel = sims.qpos[slots], sims.qvel[slots]
+    state = np.concatenate([qpos[:, 2:], qvel], axis=1)
+    z, angle = qpos[:, 1], qpos[:, 2]
+    healthy = (
+        np.all((-100.0 < state) & (state < 100.0), axis=1) & (0.7 < z) & (z < np.inf) & (-0.2 < angle) & (angle < 0.2)
+    )
+    return _planar_reward(healthy, action, x_velocity, ctrl_cost_weight), healthy
+
+
+def _walker2d_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """walker2d_v5: healthy while z is in (0.8, 2.0) and the angle in (-1, 1)."""
+    z, angle = sims.qpos[slots, 1], sims.qpos[slots, 2]
+    healthy = (0.8 < z) & (z < 2.0) & (-1.0 < angle) & (angle < 1.0)
+    return _planar_reward(healthy, action, x_velocity, ctrl_cost_weight), healthy
+
+
+def _torso_x(model: mujoco.MjModel, sims: Any, slots: Slots) -> np.ndarray:
+    """ant_v5's ``data.body(main_body=1).xpos[0]``."""
+    return sims.xpos[slots, 1, 0]
+
+
+def _ant_contact_forces(sims: Any, slots: Slots) -> np.ndarray:
+    """ant_v5's ``contact_forces``: ``cfrc_ext`` clipped to [-1, 1], every body (the world's too), [k, nbody, 6]."""
+    return np.clip(sims.cfrc_ext[slots], -1.0, 1.0)
+
+
+def _ant_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """ant_v5's ``_get_obs``: qpos[2:], qvel and the clipped contact forces of every body but the world."""
+    forces = _ant_contact_forces(sims, slots)[:, 1:]
+    return [sims.qpos[slots, 2:], sims.qvel[slots], forces.reshape(len(forces), -1)]
+
+
+def _ant_size(model: mujoco.MjModel) -> int:
+    return model.nq - 2 + model.nv + (model.nbody - 1) * 6
+
+
+def _ant_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """ant_v5: forward (weight 1) + healthy (1) - control cost - contact cost (5e-4 of the clipped forces'
+    squares); healthy while the state is finite and z is in [0.2, 1.0]."""
+    qpos, qvel = sims.qpos[slots], sims.qvel[slots]
+    z = qpos[:, 2]
+    healthy = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1) & (0.2 <= z) & (z <= 1.0)
+    rewards = x_velocity * 1 + healthy * 1.0
+    forces = _ant_contact_forces(sims, slots)
+    contact_cost = 5e-4 * np.sum(np.square(forces).reshape(len(forces), -1), axis=-1)
+    costs = ctrl_cost_weight * np.sum(np.square(action), axis=-1) + contact_cost
+    return rewards - costs, healthy
+
+
+def _mass_center_x(model: mujoco.MjModel, sims: Any, slots: Slots) -> np.ndarray:
+    """humanoid_v5's ``mass_center``'s x: the body masses' weighted mean of ``xipos``, per simulation as
+    Gymnasium sums it."""
+    mass, total = model.body_mass, model.body_mass.sum()
+    return np.array([(np.einsum("b,bj->j", mass, xipos) / total)[0] for xipos in sims.xipos[slots]])
+
+
+def _humanoid_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """humanoid_v5's ``_get_obs``: qpos[2:], qvel and :func:`com_parts`."""
+    return [sims.qpos[slots, 2:], sims.qvel[slots], *com_parts(model, sims, slots)]
+
+
+def _humanoid_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """humanoid_v5: forward (weight 1.25) + healthy (5) - control cost (of ``data.ctrl``'s squares) - contact
+    cost (5e-7 of every body's ``cfrc_ext`` squares, at most 10); healthy while z is in (1.0, 2.0)."""
+    z = sims.qpos[slots, 2]
+    healthy = (1.0 < z) & (z < 2.0)
+    rewards = 1.25 * x_velocity + healthy * 5.0
+    ctrl_cost = ctrl_cost_weight * np.sum(np.square(sims.ctrl[slots]), axis=-1)
+    forces = sims.cfrc_ext[slots]
+    contact_cost = np.clip(5e-7 * np.sum(np.square(forces).reshape(len(forces), -1), axis=-1), -np.inf, 10.0)
+    return rewards - (ctrl_cost + contact_cost), healthy
+
+
+HOPPER = Walk(None, _qpos_x, _planar_obs, _hopper_reward, _planar_size)
+WALKER2D = Walk(None, _qpos_x, _planar_obs, _walker2d_reward, _planar_size)
+ANT = Walk(("xpos", "cfrc_ext"), _torso_x, _ant_obs, _ant_reward, _ant_size)
+HUMANOID = Walk(
+    ("xipos", "cinert", "cvel", "qfrc_actuator", "cfrc_ext"), _mass_center_x, _humanoid_obs, _humanoid_reward, com_size
+)
