@@ -145,15 +145,23 @@ def test_humanoidstandup_threads_step_the_same_simulations() -> None:
         env.close()
 
 
-LOCOMOTION = ["Hopper-v5", "Walker2d-v5", "Ant-v5", "Humanoid-v5"]
+TERMINATING = [  # the tasks of envs/mujoco_tasks.py, each ending its episodes early
+    "Hopper-v5",
+    "Walker2d-v5",
+    "Ant-v5",
+    "Humanoid-v5",
+    "InvertedPendulum-v5",
+    "InvertedDoublePendulum-v5",
+]
 
 
-@pytest.mark.parametrize("env_id", LOCOMOTION)
-def test_locomotion_matches_gymnasium_through_terminations(env_id: str) -> None:
+@pytest.mark.parametrize("env_id", TERMINATING)
+def test_terminating_tasks_match_gymnasium_through_terminations(env_id: str) -> None:
     """Random actions on 3 slots for 300 steps, each slot reset (its own generator) when Gymnasium's env
     terminates: every reset and step observation and reward equal Gymnasium's bit for bit, and so does the
-    healthy-state termination. Every reward term takes part: the healthy reward drops on the terminal steps, and
-    Ant's and Humanoid's contact forces are nonzero in the observation and the contact cost."""
+    healthy-state termination. Every reward term Gymnasium reports takes part (is nonzero on some step): the
+    healthy reward drops on the terminal steps, and Ant's and Humanoid's contact forces are nonzero in the
+    observation and the contact cost."""
     count, seed = 3, 3
     env = MujocoBatchEnv(env_id, count)
     env.set_seed(seed)
@@ -162,7 +170,7 @@ def test_locomotion_matches_gymnasium_through_terminations(env_id: str) -> None:
     np.testing.assert_array_equal(env._obs, obs)
     rng = np.random.default_rng(0)
     low, high = envs[0].action_space.low, envs[0].action_space.high
-    terminations, contact_seen, ctrl_seen = 0, False, False
+    terminations, terms, active = 0, set(), set()
     for _ in range(300):
         action = rng.uniform(low, high, size=(count, len(low))).astype(np.float32)
         _, reward, terminated, truncated = env.step_slots(action)
@@ -172,15 +180,37 @@ def test_locomotion_matches_gymnasium_through_terminations(env_id: str) -> None:
             assert env._reward[i] == r and reward[i].item() == np.float32(r)
             assert bool(terminated[i]) == gym_terminated and not truncated[i]
             assert (info["reward_survive"] == 0) == gym_terminated  # the healthy reward goes with the healthy state
-            contact_seen |= info.get("reward_contact", 0.0) < 0
-            ctrl_seen |= info["reward_ctrl"] < 0
+            reported = {k for k in info if k.startswith("reward_") or k.endswith("_penalty")}
+            terms |= reported
+            active |= {k for k in reported if info[k] != 0}
             if gym_terminated:
                 terminations += 1
                 env.reset(TensorDict({"_reset": torch.arange(count)[:, None] == i}, batch_size=[count]))
                 np.testing.assert_array_equal(env._obs[i], genv.reset()[0])
-    assert terminations >= 10 and ctrl_seen
+    assert terminations >= 10 and "reward_survive" in terms and active == terms
     if env_id in ("Ant-v5", "Humanoid-v5"):
-        assert contact_seen and np.abs(env.sims.cfrc_ext[:, 1:]).max() > 0
+        assert "reward_contact" in terms and np.abs(env.sims.cfrc_ext[:, 1:]).max() > 0
+    env.close()
+
+
+def test_inverted_double_pendulum_cart_force_matches_gymnasium() -> None:
+    """The cart pushed full force each way for 30 steps, past its falls: it hits the rail's ends, so the constraint
+    force in the observation is nonzero, and every observation, reward and termination equals Gymnasium's."""
+    count, seed = 2, 4
+    env = MujocoBatchEnv("InvertedDoublePendulum-v5", count)
+    env.set_seed(seed)
+    env.reset()
+    envs, _ = gym_envs("InvertedDoublePendulum-v5", count, seed)
+    action = np.array([[1.0], [-1.0]], dtype=np.float32)
+    force_seen = False
+    for _ in range(30):
+        _, _, terminated, _ = env.step_slots(action)
+        for i, genv in enumerate(envs):
+            o, r, gym_terminated, _, _ = genv.step(action[i])
+            np.testing.assert_array_equal(env._obs[i], o)
+            assert env._reward[i] == r and bool(terminated[i]) == gym_terminated
+        force_seen |= bool((env._obs[:, 8] != 0).any())
+    assert force_seen
     env.close()
 
 
@@ -203,9 +233,17 @@ def test_terminated_slot_stays_out_while_others_run() -> None:
 
 
 @pytest.mark.parametrize(
-    "env_id,steps", [("Hopper-v5", 200), ("Walker2d-v5", 200), ("Ant-v5", 60), ("Humanoid-v5", 60)]
+    "env_id,steps",
+    [
+        ("Hopper-v5", 200),
+        ("Walker2d-v5", 200),
+        ("Ant-v5", 60),
+        ("Humanoid-v5", 60),
+        ("InvertedPendulum-v5", 200),
+        ("InvertedDoublePendulum-v5", 200),
+    ],
 )
-def test_locomotion_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
+def test_terminating_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
     """Early-terminating episodes of 3 SPNs on 4 slots through PopulationEvaluator: the same returns (bit for bit)
     and env steps on both backends, the steps counting only the steps each episode ran."""
     torch.set_num_threads(1)

@@ -1,12 +1,15 @@
-"""Gymnasium v5's locomotion tasks on the mujoco_batch backend: Hopper, Walker2d, Ant and Humanoid (default kwargs).
+"""Gymnasium v5 tasks with their own terms on the mujoco_batch backend (default kwargs): the locomotion tasks Hopper,
+Walker2d, Ant and Humanoid, and InvertedPendulum and InvertedDoublePendulum.
 
-Each :class:`Walk` holds what its Gymnasium source (gymnasium/envs/mujoco/hopper_v5.py, walker2d_v5.py, ant_v5.py,
-humanoid_v5.py) computes after ``do_simulation``: the position its forward reward differentiates, the observation,
-and the reward with the healthy state whose loss terminates the episode (``terminate_when_unhealthy=True``). Every
+Each :class:`Terms` holds what its Gymnasium source (gymnasium/envs/mujoco/hopper_v5.py, walker2d_v5.py, ant_v5.py,
+humanoid_v5.py, inverted_pendulum_v5.py, inverted_double_pendulum_v5.py) computes after ``do_simulation``: the
+position its forward reward differentiates, the observation, and the reward with the healthy state whose loss
+terminates the episode (the locomotion tasks' ``terminate_when_unhealthy=True``; the pendulums' fall). Every
 term is Gymnasium's expression on rows of slots, in its order and dtypes (the control cost of a float32 action is
 float32, as Gymnasium's is), so the envs equal Gymnasium's bit for bit (tests/test_mujoco_batch.py). The
-simulations (``sims``) are :class:`~spn_torchrl.envs.mujoco.BatchSimulations` or, for the tasks that read forces,
-:class:`~spn_torchrl.envs.mujoco.DataSimulations`: [P, ...] arrays of ``qpos``, ``qvel``, ``ctrl`` and ``fields``.
+simulations (``sims``) are :class:`~spn_torchrl.envs.mujoco.BatchSimulations` or, for the tasks that read contact
+forces, :class:`~spn_torchrl.envs.mujoco.DataSimulations`: [P, ...] arrays of ``qpos``, ``qvel``, ``ctrl`` and
+``fields``.
 """
 
 from __future__ import annotations
@@ -22,12 +25,14 @@ Slots = slice | np.ndarray  # the rows of the stepped simulations (batch.rows)
 
 
 @dataclass(frozen=True)
-class Walk:
-    """A locomotion task's own terms: the position its forward reward differentiates, its observation and its
-    reward with the healthy state that ends an episode."""
+class Terms:
+    """A task's own terms: the position its forward reward differentiates, its observation and its reward with the
+    healthy state that ends an episode."""
 
-    fields: tuple[str, ...] | None  # MjData fields read after mj_rnePostConstraint (DataSimulations); None: Batch
-    position: Callable[[mujoco.MjModel, Any, Slots], np.ndarray]  # (model, sims, slots) -> x [k]
+    # MjData fields the terms read beyond qpos, qvel and ctrl; any that mj_rnePostConstraint computes (cfrc_ext)
+    # puts the task on DataSimulations
+    fields: tuple[str, ...]
+    position: Callable[[mujoco.MjModel, Any, Slots], np.ndarray | float]  # (model, sims, slots) -> x [k] (or 0.0)
     observe: Callable[[mujoco.MjModel, Any, Slots], list[np.ndarray]]  # -> the observation's parts, rows [k, ...]
     # (model, sims, slots, action [k, nu] float32, x_velocity [k], ctrl_cost_weight) -> (reward [k], healthy [k])
     reward: Callable[[mujoco.MjModel, Any, Slots, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
@@ -155,9 +160,68 @@ def _humanoid_reward(
     return rewards - (ctrl_cost + contact_cost), healthy
 
 
-HOPPER = Walk(None, _qpos_x, _planar_obs, _hopper_reward, _planar_size)
-WALKER2D = Walk(None, _qpos_x, _planar_obs, _walker2d_reward, _planar_size)
-ANT = Walk(("xpos", "cfrc_ext"), _torso_x, _ant_obs, _ant_reward, _ant_size)
-HUMANOID = Walk(
+def _no_position(model: mujoco.MjModel, sims: Any, slots: Slots) -> float:
+    """The pendulums have no forward reward."""
+    return 0.0
+
+
+def _qpos_qvel(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """inverted_pendulum_v5's ``_get_obs``: qpos and qvel."""
+    return [sims.qpos[slots], sims.qvel[slots]]
+
+
+def _qpos_qvel_size(model: mujoco.MjModel) -> int:
+    return model.nq + model.nv
+
+
+def _pendulum_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """inverted_pendulum_v5: 1 a step while the observation is finite and the pole within 0.2 rad of upright
+    (the episode ends when it is not)."""
+    qpos, qvel = sims.qpos[slots], sims.qvel[slots]
+    healthy = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1) & ~(np.abs(qpos[:, 1]) > 0.2)
+    return healthy * 1.0, healthy
+
+
+def _double_pendulum_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """inverted_double_pendulum_v5's ``_get_obs``: the cart's position, the sines and cosines of the hinges,
+    qvel and the cart's constraint force, each clipped to [-10, 10]."""
+    qpos = sims.qpos[slots]
+    return [
+        qpos[:, :1],
+        np.sin(qpos[:, 1:]),
+        np.cos(qpos[:, 1:]),
+        np.clip(sims.qvel[slots], -10, 10),
+        np.clip(sims.qfrc_constraint[slots], -10, 10)[:, :1],
+    ]
+
+
+def _double_pendulum_size(model: mujoco.MjModel) -> int:
+    return 1 + 2 * (model.nq - 1) + model.nv + 1
+
+
+def _double_pendulum_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """inverted_double_pendulum_v5: 10 while the tip (site 0) is above y = 1, less its distance and velocity
+    penalties; the episode ends when the tip falls to y <= 1."""
+    tip = sims.site_xpos[slots, 0]
+    x, y = tip[:, 0], tip[:, 2]
+    v1, v2 = sims.qvel[slots, 1], sims.qvel[slots, 2]
+    healthy = ~(y <= 1)
+    dist_penalty = 0.01 * x**2 + (y - 2) ** 2
+    vel_penalty = 0.001 * v1**2 + 0.005 * v2**2
+    return 10.0 * healthy - dist_penalty - vel_penalty, healthy
+
+
+HOPPER = Terms((), _qpos_x, _planar_obs, _hopper_reward, _planar_size)
+WALKER2D = Terms((), _qpos_x, _planar_obs, _walker2d_reward, _planar_size)
+ANT = Terms(("xpos", "cfrc_ext"), _torso_x, _ant_obs, _ant_reward, _ant_size)
+HUMANOID = Terms(
     ("xipos", "cinert", "cvel", "qfrc_actuator", "cfrc_ext"), _mass_center_x, _humanoid_obs, _humanoid_reward, com_size
+)
+INVERTED_PENDULUM = Terms((), _no_position, _qpos_qvel, _pendulum_reward, _qpos_qvel_size)
+INVERTED_DOUBLE_PENDULUM = Terms(
+    ("site_xpos", "qfrc_constraint"), _no_position, _double_pendulum_obs, _double_pendulum_reward, _double_pendulum_size
 )
