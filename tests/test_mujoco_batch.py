@@ -95,7 +95,10 @@ def test_time_limit_truncates_at_1000_steps() -> None:
     assert nxt["step_count"].flatten().tolist() == [1000, 1000]
 
 
-@pytest.mark.parametrize("env_id,steps", [("HalfCheetah-v5", 150), ("Swimmer-v5", 150), ("HumanoidStandup-v5", 40)])
+@pytest.mark.parametrize(
+    "env_id,steps",
+    [("HalfCheetah-v5", 150), ("Swimmer-v5", 150), ("HumanoidStandup-v5", 40), ("Reacher-v5", 50), ("Pusher-v5", 100)],
+)
 def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
     """A population of SPNs, 3 genomes on 4 slots (an idle slot), through PopulationEvaluator on both backends."""
     torch.set_num_threads(1)
@@ -211,6 +214,40 @@ def test_inverted_double_pendulum_cart_force_matches_gymnasium() -> None:
             assert env._reward[i] == r and bool(terminated[i]) == gym_terminated
         force_seen |= bool((env._obs[:, 8] != 0).any())
     assert force_seen
+    env.close()
+
+
+@pytest.mark.parametrize("env_id,limit", [("Reacher-v5", 50), ("Pusher-v5", 100)])
+def test_reaching_tasks_match_gymnasium_over_episodes(env_id: str, limit: int) -> None:
+    """Random actions on 3 slots for two episodes and a half, each slot reset (its own generator: Reacher's goal,
+    Pusher's cylinder) at Gymnasium's time limit: every reset and step observation and reward equal Gymnasium's
+    bit for bit, no episode terminates, both truncate together, and every reward term is nonzero."""
+    count, seed = 3, 7
+    env = MujocoBatchEnv(env_id, count)
+    env.set_seed(seed)
+    env.reset()
+    envs, obs = gym_envs(env_id, count, seed)
+    np.testing.assert_array_equal(env._obs, obs)
+    rng = np.random.default_rng(0)
+    low, high = envs[0].action_space.low, envs[0].action_space.high
+    truncations, terms = 0, set()
+    for _ in range(limit * 5 // 2):
+        action = rng.uniform(low, high, size=(count, len(low))).astype(np.float32)
+        _, reward, terminated, truncated = env.step_slots(action)
+        for i, genv in enumerate(envs):
+            o, r, gym_terminated, gym_truncated, info = genv.step(action[i])
+            np.testing.assert_array_equal(env._obs[i], o)
+            assert env._reward[i] == r and reward[i].item() == np.float32(r)
+            assert not terminated[i] and not gym_terminated and bool(truncated[i]) == gym_truncated
+            terms |= {k for k in info if k.startswith("reward_") and info[k] != 0}
+        if truncated.any():
+            assert truncated.all()
+            truncations += 1
+            env.reset()
+            np.testing.assert_array_equal(env._obs, np.stack([genv.reset()[0] for genv in envs]))
+    assert truncations == 2 and terms == {"reward_dist", "reward_ctrl"} | (
+        {"reward_near"} if env_id == "Pusher-v5" else set()
+    )
     env.close()
 
 

@@ -37,6 +37,8 @@ TASKS = {
     "humanoid": "Humanoid-v5",
     "invertedpendulum": "InvertedPendulum-v5",
     "inverteddoublependulum": "InvertedDoublePendulum-v5",
+    "reacher": "Reacher-v5",
+    "pusher": "Pusher-v5",
 }
 
 

@@ -1,10 +1,10 @@
 """TorchRL envs of P copies of a Gymnasium v5 MuJoCo task, stepped on C threads.
 
 Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup, of the locomotion tasks
-Hopper, Walker2d, Ant and Humanoid and of InvertedPendulum and InvertedDoublePendulum (their terms in
-:mod:`spn_torchrl.envs.mujoco_tasks`, with the termination of each): observation, reward terms, reset distribution
-and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and masks as
-:class:`~spn_torchrl.envs.batch.BatchEnv`. Most tasks step in one ``mujoco.batch.Batch`` call; HumanoidStandup, Ant
+Hopper, Walker2d, Ant and Humanoid, of InvertedPendulum and InvertedDoublePendulum, and of Reacher and Pusher (their
+terms in :mod:`spn_torchrl.envs.mujoco_tasks`, with the termination of each): observation, reward terms, reset
+distribution and seeding, frame skip and the time limit (truncation at 1000 steps; Reacher's 50, Pusher's 100);
+slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. Most tasks step in one ``mujoco.batch.Batch`` call; HumanoidStandup, Ant
 and Humanoid, whose observation and reward read the contact forces that ``mj_rnePostConstraint`` computes after
 every step, step one ``MjData`` per simulation on a thread pool (:class:`DataSimulations`), so that the call runs in
 place.
@@ -32,6 +32,8 @@ from spn_torchrl.envs.mujoco_tasks import (
     HUMANOID,
     INVERTED_DOUBLE_PENDULUM,
     INVERTED_PENDULUM,
+    PUSHER,
+    REACHER,
     WALKER2D,
     Terms,
     com_parts,
@@ -67,6 +69,9 @@ BATCH_TASKS: dict[str, BatchTask] = {
     "InvertedDoublePendulum-v5": BatchTask(
         "inverted_double_pendulum.xml", 5, 0.1, "normal", 0, 0.0, terms=INVERTED_DOUBLE_PENDULUM
     ),
+    # reacher_v5.py, pusher_v5.py: their own reset draws (terms.reset), so no noise scale; 50 and 100 steps an episode
+    "Reacher-v5": BatchTask("reacher.xml", 2, 0.0, "uniform", 0, 1.0, max_episode_steps=50, terms=REACHER),
+    "Pusher-v5": BatchTask("pusher_v5.xml", 5, 0.0, "uniform", 0, 0.1, max_episode_steps=100, terms=PUSHER),
 }
 IMPACT_COST_WEIGHT = 0.5e-6
 IMPACT_COST_MAX = 10.0
@@ -96,6 +101,8 @@ def observation_size(model: mujoco.MjModel, task: BatchTask) -> int:
 
 def initial_state(task: BatchTask, model: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Gymnasium v5's reset draw of a task from a slot's generator: qpos [nq] and qvel [nv], float64."""
+    if task.terms is not None and task.terms.reset is not None:
+        return task.terms.reset(model, rng)
     scale = task.reset_noise_scale
     qpos = model.qpos0 + rng.uniform(low=-scale, high=scale, size=model.nq)
     if task.qvel_noise == "normal":

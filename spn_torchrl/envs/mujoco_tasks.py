@@ -1,10 +1,12 @@
 """Gymnasium v5 tasks with their own terms on the mujoco_batch backend (default kwargs): the locomotion tasks Hopper,
-Walker2d, Ant and Humanoid, and InvertedPendulum and InvertedDoublePendulum.
+Walker2d, Ant and Humanoid, InvertedPendulum and InvertedDoublePendulum, Reacher and Pusher.
 
 Each :class:`Terms` holds what its Gymnasium source (gymnasium/envs/mujoco/hopper_v5.py, walker2d_v5.py, ant_v5.py,
-humanoid_v5.py, inverted_pendulum_v5.py, inverted_double_pendulum_v5.py) computes after ``do_simulation``: the
-position its forward reward differentiates, the observation, and the reward with the healthy state whose loss
-terminates the episode (the locomotion tasks' ``terminate_when_unhealthy=True``; the pendulums' fall). Every
+humanoid_v5.py, inverted_pendulum_v5.py, inverted_double_pendulum_v5.py, reacher_v5.py, pusher_v5.py) computes
+after ``do_simulation``: the position its forward reward differentiates, the observation, and the reward with the
+healthy state whose loss terminates the episode (the locomotion tasks' ``terminate_when_unhealthy=True``; the
+pendulums' fall; Reacher and Pusher never terminate), and the reset draw of a task whose ``reset_model`` is its own
+(Reacher's goal, Pusher's cylinder). Every
 term is Gymnasium's expression on rows of slots, in its order and dtypes (the control cost of a float32 action is
 float32, as Gymnasium's is), so the envs equal Gymnasium's bit for bit (tests/test_mujoco_batch.py). The
 simulations (``sims``) are :class:`~spn_torchrl.envs.mujoco.BatchSimulations` or, for the tasks that read contact
@@ -37,6 +39,8 @@ class Terms:
     # (model, sims, slots, action [k, nu] float32, x_velocity [k], ctrl_cost_weight) -> (reward [k], healthy [k])
     reward: Callable[[mujoco.MjModel, Any, Slots, np.ndarray, np.ndarray, float], tuple[np.ndarray, np.ndarray]]
     size: Callable[[mujoco.MjModel], int]  # the observation's length
+    # (model, a slot's generator) -> its initial qpos [nq], qvel [nv]; None: mujoco.initial_state's noise draw
+    reset: Callable[[mujoco.MjModel, np.random.Generator], tuple[np.ndarray, np.ndarray]] | None = None
 
 
 def com_parts(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
@@ -161,7 +165,7 @@ def _humanoid_reward(
 
 
 def _no_position(model: mujoco.MjModel, sims: Any, slots: Slots) -> float:
-    """The pendulums have no forward reward."""
+    """The pendulums, Reacher and Pusher have no forward reward."""
     return 0.0
 
 
@@ -215,6 +219,101 @@ def _double_pendulum_reward(
     return 10.0 * healthy - dist_penalty - vel_penalty, healthy
 
 
+def _body_com(model: mujoco.MjModel, sims: Any, slots: Slots, body: str) -> np.ndarray:
+    """Gymnasium's ``get_body_com(body)``: the body's ``xpos``, rows [k, 3]."""
+    return sims.xpos[slots, model.body(body).id]
+
+
+def _norms(vec: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm`` of each row of ``vec`` [k, 3]: ``np.vecdot`` runs the dot product that ``norm`` runs on
+    one vector (numpy's BLAS ddot), so each equals Gymnasium's bit for bit, where ``norm(axis=1)`` does not."""
+    return np.sqrt(np.vecdot(vec, vec))
+
+
+def _ctrl_reward(action: np.ndarray, weight: float) -> np.ndarray:
+    """reacher_v5's and pusher_v5's ``reward_ctrl``: minus the float32 action's squares, weighted."""
+    return -np.square(action).sum(axis=-1) * weight
+
+
+def _never_ends(reward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A reward with the healthy state of a task that never terminates (Reacher, Pusher)."""
+    return reward, np.ones(len(reward), dtype=bool)
+
+
+def _reacher_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """reacher_v5's ``_get_obs``: the arm's cosines and sines, the target's position, the arm's velocities and
+    the fingertip's offset from the target in the plane."""
+    qpos = sims.qpos[slots]
+    theta = qpos[:, :2]
+    offset = _body_com(model, sims, slots, "fingertip") - _body_com(model, sims, slots, "target")
+    return [np.cos(theta), np.sin(theta), qpos[:, 2:], sims.qvel[slots, :2], offset[:, :2]]
+
+
+def _reacher_size(model: mujoco.MjModel) -> int:
+    return 2 + 2 + (model.nq - 2) + 2 + 2
+
+
+def _reacher_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """reacher_v5: minus the fingertip's distance to the target (weight 1) plus ``reward_ctrl``."""
+    vec = _body_com(model, sims, slots, "fingertip") - _body_com(model, sims, slots, "target")
+    reward_dist = -_norms(vec) * 1
+    return _never_ends(reward_dist + _ctrl_reward(action, ctrl_cost_weight))
+
+
+def _reacher_reset(model: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """reacher_v5's ``reset_model``: the arm's angles noised by U(-0.1, 0.1), a goal drawn in the disc of radius
+    0.2, the arm's velocities by U(-0.005, 0.005) and the target's zero."""
+    qpos = rng.uniform(low=-0.1, high=0.1, size=model.nq) + model.qpos0
+    while True:
+        goal = rng.uniform(low=-0.2, high=0.2, size=2)
+        if np.linalg.norm(goal) < 0.2:
+            break
+    qpos[-2:] = goal
+    qvel = np.zeros(model.nv) + rng.uniform(low=-0.005, high=0.005, size=model.nv)
+    qvel[-2:] = 0
+    return qpos, qvel
+
+
+def _pusher_obs(model: mujoco.MjModel, sims: Any, slots: Slots) -> list[np.ndarray]:
+    """pusher_v5's ``_get_obs``: the arm's 7 angles and velocities, the positions of its tip, the object and the
+    goal."""
+    coms = [_body_com(model, sims, slots, body) for body in ("tips_arm", "object", "goal")]
+    return [sims.qpos[slots, :7], sims.qvel[slots, :7], *coms]
+
+
+def _pusher_size(model: mujoco.MjModel) -> int:
+    return 7 + 7 + 3 * 3
+
+
+def _pusher_reward(
+    model: mujoco.MjModel, sims: Any, slots: Slots, action: np.ndarray, x_velocity: np.ndarray, ctrl_cost_weight: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """pusher_v5: minus the object's distance to the goal (weight 1), ``reward_ctrl``, minus the tip's distance
+    to the object (weight 0.5), summed in that order."""
+    obj = _body_com(model, sims, slots, "object")
+    reward_near = -_norms(obj - _body_com(model, sims, slots, "tips_arm")) * 0.5
+    reward_dist = -_norms(obj - _body_com(model, sims, slots, "goal")) * 1
+    return _never_ends(reward_dist + _ctrl_reward(action, ctrl_cost_weight) + reward_near)
+
+
+def _pusher_reset(model: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """pusher_v5's ``reset_model``: the arm at rest, the cylinder drawn in [-0.3, 0] x [-0.2, 0.2] farther than
+    0.17 from the goal at the origin, the arm's velocities by U(-0.005, 0.005), the cylinder's and goal's zero."""
+    qpos = model.qpos0.copy()
+    goal = np.asarray([0, 0])
+    while True:
+        cylinder = np.concatenate([rng.uniform(low=-0.3, high=0, size=1), rng.uniform(low=-0.2, high=0.2, size=1)])
+        if np.linalg.norm(cylinder - goal) > 0.17:
+            break
+    qpos[-4:-2] = cylinder
+    qpos[-2:] = goal
+    qvel = np.zeros(model.nv) + rng.uniform(low=-0.005, high=0.005, size=model.nv)
+    qvel[-4:] = 0
+    return qpos, qvel
+
+
 HOPPER = Terms((), _qpos_x, _planar_obs, _hopper_reward, _planar_size)
 WALKER2D = Terms((), _qpos_x, _planar_obs, _walker2d_reward, _planar_size)
 ANT = Terms(("xpos", "cfrc_ext"), _torso_x, _ant_obs, _ant_reward, _ant_size)
@@ -225,3 +324,5 @@ INVERTED_PENDULUM = Terms((), _no_position, _qpos_qvel, _pendulum_reward, _qpos_
 INVERTED_DOUBLE_PENDULUM = Terms(
     ("site_xpos", "qfrc_constraint"), _no_position, _double_pendulum_obs, _double_pendulum_reward, _double_pendulum_size
 )
+REACHER = Terms(("xpos",), _no_position, _reacher_obs, _reacher_reward, _reacher_size, _reacher_reset)
+PUSHER = Terms(("xpos",), _no_position, _pusher_obs, _pusher_reward, _pusher_size, _pusher_reset)
