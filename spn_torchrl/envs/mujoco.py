@@ -4,10 +4,10 @@ Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidSta
 Hopper, Walker2d, Ant and Humanoid, of InvertedPendulum and InvertedDoublePendulum, and of Reacher and Pusher (their
 terms in :mod:`spn_torchrl.envs.mujoco_tasks`, with the termination of each): observation, reward terms, reset
 distribution and seeding, frame skip and the time limit (truncation at 1000 steps; Reacher's 50, Pusher's 100);
-slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. Most tasks step in one ``mujoco.batch.Batch`` call; HumanoidStandup, Ant
-and Humanoid, whose observation and reward read the contact forces that ``mj_rnePostConstraint`` computes after
-every step, step one ``MjData`` per simulation on a thread pool (:class:`DataSimulations`), so that the call runs in
-place.
+slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. Most tasks step in one
+``mujoco.batch.Batch`` call; HumanoidStandup, Ant and Humanoid, whose observation and reward read the contact forces
+that ``mj_rnePostConstraint`` computes after every step, step one ``MjData`` per simulation on a thread pool
+(:class:`DataSimulations`), so that the call runs in place.
 """
 
 from __future__ import annotations
