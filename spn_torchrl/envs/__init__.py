@@ -30,6 +30,15 @@ TASKS = {
     "halfcheetah": "HalfCheetah-v5",
     "swimmer": "Swimmer-v5",
     "humanoidstandup": "HumanoidStandup-v5",
+    # beyond the paper (issue 46): the locomotion tasks, with their healthy-state termination
+    "hopper": "Hopper-v5",
+    "walker2d": "Walker2d-v5",
+    "ant": "Ant-v5",
+    "humanoid": "Humanoid-v5",
+    "invertedpendulum": "InvertedPendulum-v5",
+    "inverteddoublependulum": "InvertedDoublePendulum-v5",
+    "reacher": "Reacher-v5",
+    "pusher": "Pusher-v5",
 }
 
 
