@@ -40,7 +40,7 @@ SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
 UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
-BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
+BUDGET = {"ga": "algo.generations", "ec": "algo.generations", "ppo": "algo.total_env_steps"}
 PROGRESS_NAME = "progress.csv"
 COMMIT_NAME = "COMMIT"
 

@@ -1,4 +1,7 @@
-"""A GA run: build the env and SPN once, then evaluate, re-evaluate the elite, select, record, checkpoint."""
+"""A GA or EC run: build the env and SPN once, then evaluate, re-evaluate the elite, step, record, checkpoint.
+
+The two methods share this loop; they differ in their elite candidates and their step from one generation to the
+next (:class:`~spn_torchrl.training.ga.GAStep`, :class:`~spn_torchrl.training.ec.ECStep`)."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import numpy as np
 import torch
 
 from spn_torchrl import checkpoint
-from spn_torchrl.config import GAConfig, RunConfig
+from spn_torchrl.config import ECConfig, GAConfig, RunConfig
 from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluation import make_evaluator
@@ -19,7 +22,7 @@ from spn_torchrl.evaluation.rollout import Episodes, spike_rate
 from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import FITNESS, REEVALUATION, episode_seeds
 from spn_torchrl.snn.policies import genome_size, init_fixed_weights, mask_density, spn_from_config
-from spn_torchrl.training import ga
+from spn_torchrl.training import ec, ga
 
 log = logging.getLogger("spn_torchrl")
 
@@ -28,7 +31,7 @@ def run_meta(cfg: RunConfig, spec: TaskSpec) -> dict[str, Any]:
     """What a checkpoint must match to be resumed by this config (beyond the config contract): the format, the
     task and the network's shape."""
     return {
-        "format": checkpoint.GA_FORMAT,
+        "format": checkpoint.EC_FORMAT if isinstance(cfg.algo, ECConfig) else checkpoint.GA_FORMAT,
         "env_id": spec.env_id,
         "genome": cfg.algo.genome,
         "n_obs": spec.n_obs,
@@ -37,15 +40,20 @@ def run_meta(cfg: RunConfig, spec: TaskSpec) -> dict[str, Any]:
     }
 
 
-def initial_state(algo: GAConfig, spec: TaskSpec, seed: int) -> dict[str, Any]:
-    """Generation 0 of a new run: the fixed weights and the first population, drawn from the run seed."""
+def initial_state(algo: GAConfig | ECConfig, spec: TaskSpec, seed: int) -> dict[str, Any]:
+    """Generation 0 of a new run: the fixed weights and the first population (EC: and p, Adam's state), drawn from
+    the run seed; a GA and an EC run of one seed share their fixed weights."""
     generator = torch.Generator().manual_seed(seed)
     w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, algo.snn.hidden, generator)
-    center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
-    population = ga.initial_population(algo.population, genome_size(w1, w2), algo.sigma, generator, center)
+    if isinstance(algo, ECConfig):
+        method = ec.initial_state(algo, genome_size(w1, w2), generator)
+    else:
+        center = torch.cat([w1.flatten(), w2.flatten()]) if algo.init_from_fixed_weights else None
+        population = ga.initial_population(algo.population, genome_size(w1, w2), algo.sigma, generator, center)
+        method = {"population": population}
     return {
+        **method,
         "generation": 0,
-        "population": population,
         "pending": None,
         "rng": generator.get_state(),
         "w1": w1,
@@ -57,7 +65,7 @@ def initial_state(algo: GAConfig, spec: TaskSpec, seed: int) -> dict[str, Any]:
 
 
 def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
-    """Run (or resume) the GA of SPEC.md; returns the last generation's metrics.
+    """Run (or resume) the GA of SPEC.md or EC (``algo=conn_ec``); returns the last generation's metrics.
 
     The elite re-evaluation of generation g does not change selection (SPEC.md), so it runs in the same
     batched rollout as the population of generation g+1 (one env of N + k x episodes slots), and the last
@@ -67,7 +75,7 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     run extended to more generations writes the rows of an uninterrupted longer run.
     """
     spec = task_spec(cfg.env.id)
-    with open_run(cfg, run_dir, run_name, "ga", run_meta(cfg, spec)) as run:
+    with open_run(cfg, run_dir, run_name, cfg.algo.kind, run_meta(cfg, spec)) as run:
         state = run.state or initial_state(cfg.algo, spec, cfg.seed)
         done = state["generation"]
         if cfg.algo.generations < done:
@@ -84,8 +92,9 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
 
 
 def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]) -> dict[str, Any]:
-    """The GA loop from ``state`` to ``algo.generations``, recording each generation's row and checkpoint."""
+    """The loop from ``state`` to ``algo.generations``, recording each generation's row and checkpoint."""
     algo = cfg.algo
+    method = ec.ECStep(algo, state) if isinstance(algo, ECConfig) else ga.GAStep(algo, state)
     generator = torch.Generator()
     generator.set_state(state["rng"])
     w1, w2 = state["w1"], state["w2"]
@@ -133,7 +142,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             "spike_rate": rate,
             "synapses_l1": int(mask1.sum()),
             "synapses_l2": int(mask2.sum()),
-            "elite_index": elite_index,
+            "elite_index": elite_index if method.elite_from_population else -1,
         }
         since_row.update(steps=0, wall=now)
         run.record(row, step=generation)
@@ -162,6 +171,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
                 "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
                 "total_env_steps": total_steps,
                 "wall_time_s": elapsed(),
+                **method.state(),
             }
         )
 
@@ -186,21 +196,15 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             if pending is not None:
                 finish(pending, result.part(n, result.returns.numel()))
             fitness = fitness_eps.returns
+            pool, candidates = method.elite_pool(population, fitness)
             pending = {
                 "generation": generation,
-                "population": population,
+                "population": pool,
                 "fitness": fitness,
                 "steps": fitness_eps.total_steps,
-                "candidates": ga.elite_candidates(fitness, k),
+                "candidates": candidates,
             }
-            population = ga.next_generation(
-                population,
-                fitness,
-                sigma=algo.sigma,
-                truncation=algo.truncation,
-                generator=generator,
-                elitism=algo.elitism,
-            )
+            population = method.advance(population, fitness, generator)
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
             finish(pending, rollout(*reevaluation(pending)))
