@@ -115,3 +115,13 @@ def test_the_step_keeps_p_for_the_elite_and_updates_it_after():
     assert population.shape == (4, 6) and not torch.equal(step.p, state["p"])
     saved = step.state()
     assert torch.equal(saved["p"], step.p) and saved["adam"]["t"] == 1
+
+
+def test_analysis_counts_an_ec_runs_budget_in_generations(tmp_path):
+    from omegaconf import OmegaConf
+
+    from spn_torchrl.analysis.runs import RunRecord
+
+    config = OmegaConf.create({"algo": {"name": "conn_ec", "kind": "ec", "generations": 3}})
+    run = RunRecord(tmp_path, config, [{"generation": 1}, {"generation": 2}])
+    assert (run.budget, run.done, run.finished, run.progress_text) == (3, 2, False, "2 of 3 generations")
