@@ -355,6 +355,10 @@ class RunConfig:
     resume: bool = False
     torch_threads: int = 1
     run_name: Optional[str] = None
+    # option (beyond the paper): every method's policy sees (obs - mean) / std of running statistics, EC's
+    # (ec.py l. 125, 263: brax running_statistics), updated after each generation or iteration from the
+    # observations its policies saw (spn_torchrl/snn/observations.py); the paper's policies see raw observations
+    normalize_observations: bool = False
 
     def __post_init__(self) -> None:
         if any(value is MISSING or value == MISSING for value in (self.algo, self.env, self.logger, self.evaluator)):
@@ -374,6 +378,18 @@ class RunConfig:
         self.evaluator.validate("evaluator")
         _int_in("seed", self.seed, 0, MAX_SEED)
         _int_in("torch_threads", self.torch_threads, 1, 256)
+        _check(
+            isinstance(self.normalize_observations, bool),
+            "normalize_observations",
+            self.normalize_observations,
+            "true or false",
+        )
+        _check(
+            not self.normalize_observations or self.env.backend != "mujoco_warp",
+            "normalize_observations",
+            self.normalize_observations,
+            "false for env.backend=mujoco_warp (its device loop does not gather observation statistics yet)",
+        )
         if isinstance(self.evaluator, RayEvaluatorConfig):
             _check(
                 isinstance(self.algo, EVOLUTION),
