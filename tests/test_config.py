@@ -128,6 +128,11 @@ RULES = [
         ["algo=conn_ec", "evaluator=ray", "evaluator.num_actors=201"],
         "evaluator.num_actors must be an integer in [1, 200]",
     ),
+    # normalize_observations (issue 46)
+    (
+        ["normalize_observations=true", "env=swimmer", "env.backend=mujoco_warp"],
+        "normalize_observations must be false for env.backend=mujoco_warp",
+    ),
 ]
 
 
