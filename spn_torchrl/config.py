@@ -137,6 +137,70 @@ class GAConfig:
 
 
 @dataclass
+class ECConfig:
+    """Connections-EC (beyond the paper): Evolving Connectivity's NES on each synapse's existence probability
+    (Wang et al., NeurIPS 2023; github.com/imoneoi/EvolvingConnectivity at 3e61be4, ``ec.py``), on the paper's SPN
+    and fixed weights, at the paper's budget.
+
+    From their ``ec.py``: p starts at 0.5 (``_runner_init``, l. 184); a generation samples masks ``uniform < p``
+    (``_sample_bernoulli_parameter``, l. 107); fitness gets the centered rank ``rank / (N - 1) - 0.5``
+    (``_centered_rank_transform``, l. 88-96); the NES gradient is ``mean_i w_i (x_i - p)`` (``_nes_grad``, l. 275-278),
+    ascended by Adam (optax ``scale_by_adam`` defaults b1 0.9, b2 0.999, eps 1e-8, then ``scale(-lr)``, l. 352-356)
+    with ``lr`` 0.15 (``ESConfig.lr``, l. 43); p is clipped to ``[eps, 1 - eps]`` with ``eps`` 1e-3 (``ESConfig.eps``,
+    l. 45; l. 287); the deterministic mask is ``p > 0.5`` (``_deterministic_bernoulli_parameter``, l. 113-116).
+    Where EC and the paper differ the paper's budget holds: N = 200 masks (EC: ``pop_size`` 10240, l. 42) for 100
+    generations (EC: ``total_generations`` 1000, l. 317), one episode of fitness each (EC averages the episodes an
+    individual finishes while the slowest finishes one, l. 254-258, 270). The logged return is the GA's: the
+    elite, here the deterministic mask of the p that sampled the generation (EC's ``eval_fitness``, l. 210, 297),
+    gets ``elite_episodes`` fresh episodes (SPEC.md). ``snn.score_threshold`` plays no part: a mask is sampled, not
+    thresholded from scores."""
+
+    name: str = "conn_ec"  # the method's name in run names and reports; source: project
+    kind: str = "ec"  # the training loop that runs it; source: project
+    generations: int = 100  # the paper's budget, not EC's 1000 (ec.py l. 317); source: SPEC.md, GA
+    population: int = 200  # the paper's N, not EC's pop_size 10240 (ec.py l. 42); source: SPEC.md, GA
+    lr: float = 0.15  # Adam's step on p; source: EvolvingConnectivity ec.py l. 43 (ESConfig.lr)
+    eps: float = 1e-3  # p is clipped to [eps, 1 - eps]; source: EvolvingConnectivity ec.py l. 45, 287
+    p_init: float = 0.5  # every connection's initial probability; source: EvolvingConnectivity ec.py l. 184
+    adam_b1: float = 0.9  # Adam's b1; source: optax scale_by_adam defaults, EvolvingConnectivity ec.py l. 353
+    adam_b2: float = 0.999  # Adam's b2; source: optax scale_by_adam defaults, EvolvingConnectivity ec.py l. 353
+    adam_eps: float = 1e-8  # Adam's eps; source: optax scale_by_adam defaults, EvolvingConnectivity ec.py l. 353
+    # fresh episodes of the one deterministic mask that give the logged return; source: SPEC.md, GA
+    elite_episodes: int = 10
+    snn: SNNConfig = field(default_factory=SNNConfig)  # the SPN's constants (algo.snn.*); source: SPEC.md, SPN
+
+    def validate(self, at: str = "algo") -> None:
+        _int_in(f"{at}.generations", self.generations, 1, MAX_SIZE)
+        _int_in(f"{at}.population", self.population, 2, MAX_SIZE)
+        _number(f"{at}.lr", self.lr, 0, None, open_low=True)
+        _number(f"{at}.eps", self.eps, 0, 0.5, open_low=True, open_high=True)
+        _number(f"{at}.p_init", self.p_init, self.eps, 1 - self.eps)
+        _number(f"{at}.adam_b1", self.adam_b1, 0, 1, open_high=True)
+        _number(f"{at}.adam_b2", self.adam_b2, 0, 1, open_high=True)
+        _number(f"{at}.adam_eps", self.adam_eps, 0, None, open_low=True)
+        _int_in(f"{at}.elite_episodes", self.elite_episodes, 1, self.population)
+        self.snn.validate(f"{at}.snn")
+
+    @property
+    def genome(self) -> str:
+        """EC's masks travel as connection genomes (scores of +-inf), so every GA tool reads them."""
+        return "connections"
+
+    @property
+    def elite_candidates(self) -> int:
+        """One elite is re-evaluated: the deterministic mask."""
+        return 1
+
+    @property
+    def evaluation_slots(self) -> int:
+        """Env slots a generation needs: the masks and the previous generation's re-evaluation, in one rollout."""
+        return self.population + self.elite_episodes
+
+
+EVOLUTION = (GAConfig, ECConfig)  # the methods that evaluate populations with the GA's evaluators and run loop
+
+
+@dataclass
 class PPOConfig:
     """DPN-PPO / Connections-PPO (SPEC.md, paper appendix): 1e6 steps as 1e3 iterations of 1e3 steps, 25 epochs of
     minibatches of 100, Adam 1e-5 (policy) / 1e-4 (value), gamma 0.99, lambda 0.95, clip 0.2."""
@@ -310,7 +374,7 @@ class RunConfig:
     """One run: the method (``algo``: a GA or a PPO config), the task, the logger and the evaluator (a local or a
     Ray config). Validates every field on construction."""
 
-    algo: Any = MISSING  # the method (conf/algo): GAConfig | PPOConfig; source: project
+    algo: Any = MISSING  # the method (conf/algo): GAConfig | ECConfig | PPOConfig; source: project
     env: EnvConfig = MISSING  # the task (conf/env); source: project
     logger: LoggerConfig = MISSING  # the logger (conf/logger); source: project
     # the evaluator (conf/evaluator): LocalEvaluatorConfig | RayEvaluatorConfig; source: project
@@ -321,11 +385,18 @@ class RunConfig:
     torch_threads: int = 1  # torch's intra-op threads (physics threads are env.threads); source: project
     # the run's name in logs and W&B (None: {env}__{algo}__{seed}, with __{unix time} outside a sweep); source: project
     run_name: Optional[str] = None
+    # option (beyond the paper): every method's policy sees (obs - mean) / std of running statistics, EC's
+    # (ec.py l. 125, 263: brax running_statistics), updated after each generation or iteration from the
+    # observations its policies saw (spn_torchrl/snn/observations.py); the paper's policies see raw observations;
+    # source: EvolvingConnectivity ec.py
+    normalize_observations: bool = False
 
     def __post_init__(self) -> None:
         if any(value is MISSING or value == MISSING for value in (self.algo, self.env, self.logger, self.evaluator)):
             return  # the schema itself, before composition
-        _check(isinstance(self.algo, (GAConfig, PPOConfig)), "algo", self.algo, "a GA or a PPO config (conf/algo)")
+        _check(
+            isinstance(self.algo, (*EVOLUTION, PPOConfig)), "algo", self.algo, "a GA, an EC or a PPO config (conf/algo)"
+        )
         _check(
             isinstance(self.evaluator, (LocalEvaluatorConfig, RayEvaluatorConfig)),
             "evaluator",
@@ -338,12 +409,24 @@ class RunConfig:
         self.evaluator.validate("evaluator")
         _int_in("seed", self.seed, 0, MAX_SEED)
         _int_in("torch_threads", self.torch_threads, 1, 256)
+        _check(
+            isinstance(self.normalize_observations, bool),
+            "normalize_observations",
+            self.normalize_observations,
+            "true or false",
+        )
+        _check(
+            not self.normalize_observations or self.env.backend != "mujoco_warp",
+            "normalize_observations",
+            self.normalize_observations,
+            "false for env.backend=mujoco_warp (its device loop does not gather observation statistics yet)",
+        )
         if isinstance(self.evaluator, RayEvaluatorConfig):
             _check(
-                isinstance(self.algo, GAConfig),
+                isinstance(self.algo, EVOLUTION),
                 "evaluator",
                 "ray",
-                f"local for algo={self.algo.name} (Ray actors evaluate GA populations; PPO trains one policy here)",
+                f"local for algo={self.algo.name} (Ray actors evaluate GA or EC populations; PPO trains one policy here)",
             )
             _int_in("evaluator.num_actors", self.evaluator.num_actors, 1, self.algo.population)
         if self.env.backend == "mujoco_warp":
@@ -364,6 +447,7 @@ def register_configs() -> None:
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
     cs.store(group="algo", name="ga_schema", node=GAConfig)
+    cs.store(group="algo", name="ec_schema", node=ECConfig)
     cs.store(group="algo", name="ppo_schema", node=PPOConfig)
     cs.store(group="env", name="env_schema", node=EnvConfig)
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
@@ -372,7 +456,7 @@ def register_configs() -> None:
 
 
 SCHEMAS = {
-    "algo": {"ga": GAConfig, "ppo": PPOConfig},
+    "algo": {"ga": GAConfig, "ec": ECConfig, "ppo": PPOConfig},
     "evaluator": {"local": LocalEvaluatorConfig, "ray": RayEvaluatorConfig},
 }
 
@@ -409,7 +493,7 @@ def to_run_config(cfg: DictConfig | dict) -> RunConfig:
     for group in ("algo", "evaluator"):
         node = plain.get(group)
         schema = _schema_of(group, node)
-        what = "algo.kind ('ga' or 'ppo')" if group == "algo" else "evaluator.name ('local' or 'ray')"
+        what = "algo.kind ('ga', 'ec' or 'ppo')" if group == "algo" else "evaluator.name ('local' or 'ray')"
         _check(
             schema is not None, group, None if node is None else OmegaConf.to_container(node), f"a config with {what}"
         )

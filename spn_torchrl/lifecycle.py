@@ -38,9 +38,11 @@ log = logging.getLogger("spn_torchrl")
 # fields that cannot change a run's results: a resume may change them (logged)
 SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
 UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
+# fields added after runs were written, with the value every earlier run had: a saved config without one reads so
+ADDED = {"normalize_observations": False}
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
-BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
+BUDGET = {"ga": "algo.generations", "ec": "algo.generations", "ppo": "algo.total_env_steps"}
 PROGRESS_NAME = "progress.csv"
 COMMIT_NAME = "COMMIT"
 
@@ -63,7 +65,7 @@ def _safe(path: str) -> bool:
 
 def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) -> tuple[list[str], list[str]]:
     """The differences between a run's saved config and a resume's: (refused, allowed), as ``field old -> new``."""
-    old_flat, new_flat = flatten(saved), flatten(new)
+    old_flat, new_flat = {**ADDED, **flatten(saved)}, flatten(new)
     refused, allowed = [], []
     for path in sorted(set(old_flat) | set(new_flat)):
         old, now = old_flat.get(path, "<absent>"), new_flat.get(path, "<absent>")

@@ -10,7 +10,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig
 
-from spn_torchrl.config import GAConfig, RunConfig, to_run_config
+from spn_torchrl.config import EVOLUTION, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
 from spn_torchrl.envs.mujoco_warp import torch_device
 from spn_torchrl.errors import RunInterrupted, require
@@ -63,7 +63,7 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
     except OSError as err:
         raise run_file_error(out, err) from None
     torch.set_num_threads(typed.torch_threads)
-    train = evolve if isinstance(typed.algo, GAConfig) else train_ppo
+    train = evolve if isinstance(typed.algo, EVOLUTION) else train_ppo
     try:
         with signals_interrupt():
             return train(typed, out, run_name(typed))

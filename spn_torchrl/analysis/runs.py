@@ -48,13 +48,13 @@ class RunRecord:
     @property
     def budget(self) -> int | None:
         """What the run was asked for: generations (GA) or env steps (PPO); None where the config does not say."""
-        value = self.config.algo.get("generations" if self.kind == "ga" else "total_env_steps")
+        value = self.config.algo.get("total_env_steps" if self.kind == "ppo" else "generations")
         return None if value is None else int(value)
 
     @property
     def done(self) -> int:
         """How far it got: generations logged (GA) or its last total_env_steps (PPO)."""
-        if self.kind == "ga":
+        if self.kind != "ppo":  # a GA or EC run: one row a generation
             return len(self.rows)
         return int(self.rows[-1].get("total_env_steps") or 0)
 
@@ -66,7 +66,7 @@ class RunRecord:
     @property
     def progress_text(self) -> str:
         """``3 of 30 generations`` or ``2000 of 1000000 env steps``."""
-        unit = "generations" if self.kind == "ga" else "env steps"
+        unit = "env steps" if self.kind == "ppo" else "generations"
         return f"{self.done} of {'?' if self.budget is None else self.budget} {unit}"
 
     def snn(self, name: str, default: Any) -> Any:

@@ -3,6 +3,11 @@
 Follows the paper's appendix (Spinning Up's PPO): one env, ``frames_per_batch`` steps per iteration from a
 reset (Spinning Up resets at every epoch end, which also makes a resumed run exact), advantages computed once
 per iteration, ``epochs`` passes over minibatches, one Adam with a learning rate per network.
+
+With ``normalize_observations`` the actor's and the critic's networks start with an
+:class:`~spn_torchrl.snn.observations.ObservationNormalizer`: an iteration collects and trains with the running
+statistics as they stood before it, which are then updated from the observations it collected (as a GA or EC
+generation's); the checkpoint keeps the statistics (``obs_stats``) and the networks' buffers.
 """
 
 from __future__ import annotations
@@ -31,6 +36,8 @@ from spn_torchrl.envs import TaskSpec, make_transformed_env, task_spec
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import COLLECTION, EVALUATION, episode_seed
+from spn_torchrl.snn import observations
+from spn_torchrl.snn.observations import ObservationNormalizer
 from spn_torchrl.snn.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.snn.surrogate import surrogate_spike
 
@@ -76,10 +83,16 @@ def spn_net(cfg: RunConfig, spec: TaskSpec) -> TrainableSPN:
     return TrainableSPN(spn, scores, surrogate_spike(algo.surrogate, algo.surrogate_alpha))
 
 
+def normalized(net: nn.Module, size: int, normalize: bool) -> nn.Module:
+    """``net`` behind an observation normaliser of ``size`` observations where ``normalize``, else ``net``."""
+    return nn.Sequential(ObservationNormalizer(size), net) if normalize else net
+
+
 def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticActor:
     """The stochastic policy: Gaussian (state-independent log-std) around the net's output, or Categorical."""
     algo = cfg.algo
     net = spn_net(cfg, spec) if algo.policy == "spn" else dpn(spec.n_obs, spec.n_act, algo.hidden, spec.discrete)
+    net = normalized(net, spec.n_obs, cfg.normalize_observations)
     action_spec = env.full_action_spec_unbatched
     if spec.discrete:
         module = Keyed(net, in_keys=["observation"], out_keys=["logits"])
@@ -103,10 +116,19 @@ def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticAct
     )
 
 
-def make_critic(spec: TaskSpec, hidden: int) -> Keyed:
-    """The paper's value net: n -> hidden ReLU -> 1, as TorchRL's value operator (observation -> state_value)."""
+def make_critic(spec: TaskSpec, hidden: int, normalize: bool = False) -> Keyed:
+    """The paper's value net: n -> hidden ReLU -> 1, as TorchRL's value operator (observation -> state_value);
+    ``normalize``: behind an observation normaliser."""
     net = nn.Sequential(nn.Linear(spec.n_obs, hidden), nn.ReLU(), nn.Linear(hidden, 1))
-    return Keyed(net, in_keys=["observation"], out_keys=["state_value"])
+    return Keyed(normalized(net, spec.n_obs, normalize), in_keys=["observation"], out_keys=["state_value"])
+
+
+def set_norm(norm: observations.Norm, *modules: nn.Module) -> None:
+    """Give every observation normaliser in ``modules`` the normalisation ``norm``."""
+    for module in modules:
+        for part in module.modules():
+            if isinstance(part, ObservationNormalizer):
+                part.set(norm)
 
 
 def evaluate_policy(actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int) -> tuple[torch.Tensor, int]:
@@ -173,7 +195,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     env = make_transformed_env(spec.env_id, 1, backend=cfg.env.backend)
     eval_env = make_transformed_env(spec.env_id, algo.eval_episodes, backend=cfg.env.backend)
     actor = make_actor(cfg, spec, env)
-    critic = make_critic(spec, algo.hidden)
+    critic = make_critic(spec, algo.hidden, cfg.normalize_observations)
     loss_module = ClipPPOLoss(
         actor,
         critic,
@@ -190,6 +212,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     )
     counts = Counts()
     wall = 0.0
+    stats = observations.initial_stats(spec.n_obs) if cfg.normalize_observations else None
     if run.state is not None:
         state = run.state
         actor.load_state_dict(state["actor"])
@@ -198,6 +221,9 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
         counts.values.update(state["counts"])
         wall = state["wall_time_s"]
         torch.set_rng_state(state["torch_rng"])
+        stats = state.get("obs_stats")
+    if stats is not None:
+        set_norm(observations.policy_norm(stats), actor, critic)
 
     next_iteration = [start + 1]
 
@@ -247,6 +273,9 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                         if key in loss.keys():
                             sums[key] += float(loss[key].detach())
                     updates += 1
+            if stats is not None:  # the next iteration's policy sees the statistics of every observation so far
+                stats = observations.update(stats, observations.moments(data["observation"]))
+                set_norm(observations.policy_norm(stats), actor, critic)
             collector.update_policy_weights_()
             done = data["next", "done"].squeeze(-1)
             finished = data["next", "episode_reward"].squeeze(-1)[done]
@@ -283,6 +312,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                     "torch_rng": torch.get_rng_state(),
                     "counts": dict(counts.values),
                     "wall_time_s": wall,
+                    **({} if stats is None else {"obs_stats": stats}),
                 }
             )
             next_iteration[0] = iteration + 1
