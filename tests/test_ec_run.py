@@ -3,13 +3,9 @@ extended run resumes to the uninterrupted run's rows bit for bit."""
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import time
-
 import pytest
 import torch
-from conftest import ROOT, run_train, train_command
+from conftest import run_train, sigterm_after_first_checkpoint
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -61,19 +57,9 @@ def test_an_extended_run_writes_the_rows_of_the_longer_one(tmp_path, four):
 
 
 def test_a_sigterm_stopped_run_resumes_to_the_uninterrupted_rows(tmp_path, four):
-    proc = subprocess.Popen(
-        train_command(tmp_path, *BASE, "algo.generations=4"),
-        cwd=ROOT,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    deadline = time.time() + 120
-    while not (tmp_path / "checkpoint.pt").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.01)
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
+    returncode, err = sigterm_after_first_checkpoint(tmp_path, *BASE, "algo.generations=4")
     state = checkpoint.load(tmp_path)
-    assert proc.returncode == 143 and b"holds a consistent checkpoint" in err, err
+    assert returncode == 143 and b"holds a consistent checkpoint" in err, err
     assert state["generation"] < 4 or state["pending"] is not None  # stopped before its end
     run_train(tmp_path, *BASE, "algo.generations=4", "resume=true")
     assert rows(tmp_path) == rows(four)

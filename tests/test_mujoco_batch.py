@@ -97,12 +97,8 @@ def test_time_limit_truncates_at_1000_steps() -> None:
     assert nxt["step_count"].flatten().tolist() == [1000, 1000]
 
 
-@pytest.mark.parametrize(
-    "env_id,steps",
-    [("HalfCheetah-v5", 150), ("Swimmer-v5", 150), ("HumanoidStandup-v5", 40), ("Reacher-v5", 50), ("Pusher-v5", 100)],
-)
-def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
-    """A population of SPNs, 3 genomes on 4 slots (an idle slot), through PopulationEvaluator on both backends."""
+def spn_results_on_both_backends(env_id: str, steps: int):
+    """3 seeded SPN genomes on 4 slots (an idle slot) through PopulationEvaluator: (gymnasium, mujoco_batch)."""
     torch.set_num_threads(1)
     spec = task_spec(env_id)
     gen = torch.Generator().manual_seed(1)
@@ -114,7 +110,16 @@ def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
         evaluator = PopulationEvaluator(make_transformed_env(env_id, 4, backend=backend), spn, steps)
         results[backend] = evaluator(genomes, 123)
         evaluator.close()
-    ref, got = results["gymnasium"], results["mujoco_batch"]
+    return results["gymnasium"], results["mujoco_batch"]
+
+
+@pytest.mark.parametrize(
+    "env_id,steps",
+    [("HalfCheetah-v5", 150), ("Swimmer-v5", 150), ("HumanoidStandup-v5", 40), ("Reacher-v5", 50), ("Pusher-v5", 100)],
+)
+def test_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
+    """A population of SPNs, 3 genomes on 4 slots (an idle slot), through PopulationEvaluator on both backends."""
+    ref, got = spn_results_on_both_backends(env_id, steps)
     assert torch.equal(got.steps, ref.steps) and got.total_steps == 3 * steps
     torch.testing.assert_close(got.returns, ref.returns, rtol=1e-6, atol=1e-6)
     assert torch.equal(got.spikes, ref.spikes)
@@ -290,18 +295,7 @@ def test_terminated_slot_stays_out_while_others_run() -> None:
 def test_terminating_spn_returns_match_gymnasium_backend(env_id: str, steps: int) -> None:
     """Early-terminating episodes of 3 SPNs on 4 slots through PopulationEvaluator: the same returns (bit for bit)
     and env steps on both backends, the steps counting only the steps each episode ran."""
-    torch.set_num_threads(1)
-    spec = task_spec(env_id)
-    gen = torch.Generator().manual_seed(1)
-    w1, w2 = init_fixed_weights(spec.n_obs, spec.n_act, 64, gen)
-    spn = PopulationSPN(w1, w2, action_low=spec.action_low, action_high=spec.action_high)
-    genomes = torch.randn(3, spn.genome_size, generator=gen)
-    results = {}
-    for backend in ("gymnasium", "mujoco_batch"):
-        evaluator = PopulationEvaluator(make_transformed_env(env_id, 4, backend=backend), spn, steps)
-        results[backend] = evaluator(genomes, 123)
-        evaluator.close()
-    ref, got = results["gymnasium"], results["mujoco_batch"]
+    ref, got = spn_results_on_both_backends(env_id, steps)
     assert torch.equal(got.steps, ref.steps) and torch.equal(got.returns, ref.returns)
     assert torch.equal(got.spikes, ref.spikes)
     assert got.total_steps == int(got.steps.sum()) < 3 * steps  # some episode ended early

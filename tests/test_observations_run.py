@@ -3,13 +3,9 @@ and statistics; PPO's resume too; play replays and export writes each elite with
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import time
-
 import pytest
 import torch
-from conftest import ROOT, run_train, train_command
+from conftest import run_train, sigterm_after_first_checkpoint
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -60,18 +56,8 @@ def test_a_run_keeps_its_statistics_and_each_elites_normalisation(four):
 def test_a_resumed_run_on_two_processes_gives_the_uninterrupted_rows_and_statistics(four, tmp_path):
     method, full = four
     if method == "conn_ga":  # stopped by SIGTERM with a pending re-evaluation in its checkpoint
-        proc = subprocess.Popen(
-            train_command(tmp_path, *ON, *METHODS[method], "algo.generations=4"),
-            cwd=ROOT,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-        )
-        deadline = time.time() + 120
-        while not (tmp_path / "checkpoint.pt").exists() and time.time() < deadline and proc.poll() is None:
-            time.sleep(0.01)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=120)
-        assert proc.returncode == 143 and b"holds a consistent checkpoint" in err, err
+        returncode, err = sigterm_after_first_checkpoint(tmp_path, *ON, *METHODS[method], "algo.generations=4")
+        assert returncode == 143 and b"holds a consistent checkpoint" in err, err
         assert checkpoint.load(tmp_path)["pending"] is not None
     else:  # a finished shorter run, extended
         run_train(tmp_path, *ON, *METHODS[method], "algo.generations=2")
