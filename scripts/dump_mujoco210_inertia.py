@@ -10,6 +10,7 @@ import hashlib
 import json
 import os
 import sys
+from importlib.metadata import version
 
 import gym
 import mujoco_py
@@ -35,6 +36,7 @@ def main(out):
     data = {
         "provenance": {
             "gym": gym.__version__,
+            "free_mujoco_py": version("free-mujoco-py"),
             "mujoco_py": mujoco_py.__version__,
             "mj_version": int(mujoco_py.functions.mj_version()),
             "numpy": np.__version__,
@@ -48,7 +50,7 @@ def main(out):
         json.dump(data, f, indent=1)
         f.write("\n")
     os.replace(out + ".tmp", out)
-    print(f"wrote {out}")
+    print(f"wrote {os.path.normpath(out)}")
 
 
 if __name__ == "__main__":

@@ -23,7 +23,14 @@ from spn_torchrl.errors import ConfigError
 GENOMES = ("connections", "weights")
 POLICIES = ("dpn", "spn")
 SURROGATES = ("fast_sigmoid", "atan")
-BACKENDS = ("gymnasium", "mujoco_batch", "cartpole_batch", "mujoco_warp", "gym_v2")  # envs.BACKENDS implements each
+BACKENDS = (
+    "gymnasium",
+    "mujoco_batch",
+    "cartpole_batch",
+    "mujoco_warp",
+    "gym_v2",
+    "mujoco_batch_mj210",
+)  # envs.BACKENDS implements each
 LOGGERS = ("csv", "wandb", "none")
 WANDB_MODES = ("auto", "online", "offline", "disabled")
 MAX_SIZE = 100_000  # populations, generations, widths: what a 2-core machine can hold at all
@@ -197,7 +204,7 @@ class EnvConfig:
     name: str = MISSING
     id: str = MISSING  # a Gymnasium id with a flat Box observation
     backend: str = "gymnasium"
-    # mujoco_batch: physics threads of each env; gym_v2: worker processes of each env (the others step in one thread)
+    # mujoco_batch(_mj210): physics threads of each env; gym_v2: worker processes of each env (the others step in one thread)
     threads: int = 1
     device: str = "cpu"  # mujoco_warp: "cpu", "cuda" or "cuda:<index>" (the other backends run on the CPU)
 
@@ -207,7 +214,7 @@ class EnvConfig:
         _choice(f"{at}.backend", self.backend, BACKENDS)
         _int_in(f"{at}.threads", self.threads, 1, 256)
         _check(
-            self.threads == 1 or self.backend in ("mujoco_batch", "gym_v2"),
+            self.threads == 1 or self.backend in ("mujoco_batch", "mujoco_batch_mj210", "gym_v2"),
             f"{at}.threads",
             self.threads,
             f"1 for env.backend={self.backend} (only mujoco_batch and gym_v2 step on several threads or processes)",

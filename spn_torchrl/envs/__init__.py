@@ -23,6 +23,7 @@ from spn_torchrl.envs.cartpole import ENV_ID as CARTPOLE_ID
 from spn_torchrl.envs.cartpole import cartpole_batch_backend
 from spn_torchrl.envs.gym_v2 import V2_TASKS, check_gym_v2, gym_v2_backend
 from spn_torchrl.envs.mujoco import BATCH_TASKS, mujoco_batch_backend
+from spn_torchrl.envs.mujoco210 import MJ210_TASKS, mujoco210_backend
 from spn_torchrl.envs.mujoco_warp import WARP_SIZES, mujoco_warp_backend
 from spn_torchrl.errors import ConfigError
 
@@ -112,6 +113,7 @@ BACKENDS: dict[str, Backend] = {
     "cartpole_batch": Backend(cartpole_batch_backend, (CARTPOLE_ID,)),
     "mujoco_warp": Backend(mujoco_warp_backend, tuple(WARP_SIZES), on_device=True),  # the gpu extra
     "gym_v2": Backend(gym_v2_backend, tuple(V2_TASKS), check=check_gym_v2),  # scripts/make_gym_v2_env.sh
+    "mujoco_batch_mj210": Backend(mujoco210_backend, tuple(MJ210_TASKS)),  # MuJoCo 2.1.0's body inertias
 }
 
 
