@@ -35,6 +35,7 @@ from spn_torchrl.training import ga
 from spn_torchrl.training.evolve import initial_state
 
 BACKENDS = {"v2": "gym_v2", "v5": "mujoco_batch"}
+WEIGHTS = {"authors": "authors' weights", "ours": "our weights"}
 
 
 def generation_one(
@@ -87,13 +88,13 @@ def main() -> None:
     published = load_published(args.reference / "HalfCheetah-v2_SPN_Connections_gen100_elites.npz")
     logged = logged_first(args.reference / "HalfCheetah-v2_SPN_Connections_elite_returns_by_gen.csv")
     cells = [(w, v) for w in weights for v in versions]
-    head = ["seed S (published P)", "authors' log, gen. 1 (P)"] + [f"{w}' weights, {v}" for w, v in cells]
+    head = ["seed S (published P)", "authors' log, gen. 1 (P)"] + [f"{WEIGHTS[w]}, {v}" for w, v in cells]
     head += ["our committed row, gen. 1 (S, v5)"]
     print("HalfCheetah Connections-GA, generation 1 (elite: best 10-episode mean of the top 10; mean fitness)")
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head), flush=True)
     columns: dict[str, list[float]] = {h: [] for h in head[1:]}
-    seconds = {f"{w}' weights, {v}": 0.0 for w, v in cells}
+    seconds = {f"{WEIGHTS[w]}, {v}": 0.0 for w, v in cells}
     for s in args.seeds:
         run_dir = args.runs / f"halfcheetah__conn_ga__{s}"
         cfg = from_saved((run_dir / "config.yaml").read_text())
@@ -109,8 +110,8 @@ def main() -> None:
         for w, v in cells:
             t0 = time.perf_counter()
             g = generation_one(f"HalfCheetah-{v}", BACKENDS[v], cfg, *fixed[w], state["population"], args.threads)
-            seconds[f"{w}' weights, {v}"] += time.perf_counter() - t0
-            columns[f"{w}' weights, {v}"].append(g["elite"])
+            seconds[f"{WEIGHTS[w]}, {v}"] += time.perf_counter() - t0
+            columns[f"{WEIGHTS[w]}, {v}"].append(g["elite"])
             row.append(f"{g['elite']:.1f} ({g['mean']:.0f})")
         committed = read_progress(run_dir / "progress.csv")[0]
         columns[head[-1]].append(float(committed["eval_return"]))
