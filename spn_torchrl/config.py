@@ -25,7 +25,14 @@ from spn_torchrl.errors import ConfigError
 GENOMES = ("connections", "weights")
 POLICIES = ("dpn", "spn")
 SURROGATES = ("fast_sigmoid", "atan")
-BACKENDS = ("gymnasium", "mujoco_batch", "cartpole_batch", "mujoco_warp")  # envs.BACKENDS implements each
+BACKENDS = (
+    "gymnasium",
+    "mujoco_batch",
+    "cartpole_batch",
+    "mujoco_warp",
+    "gym_v2",
+    "mujoco_batch_mj210",
+)  # envs.BACKENDS implements each
 LOGGERS = ("csv", "wandb", "none")
 WANDB_MODES = ("auto", "online", "offline", "disabled")
 MAX_SIZE = 100_000  # populations, generations, widths: what a 2-core machine can hold at all
@@ -271,10 +278,12 @@ class EnvConfig:
 
     name: str = MISSING  # the task's name in run directories (conf/env/NAME.yaml); source: project
     id: str = MISSING  # a Gymnasium id with a flat Box observation; source: SPEC.md, Environments
-    # what steps the copies: gymnasium (the reference for any id), mujoco_batch, cartpole_batch, mujoco_warp
+    # what steps the copies: gymnasium (the reference for any id), mujoco_batch, cartpole_batch, mujoco_warp,
+    # gym_v2 (the paper's Gym 0.21 + mujoco-py), mujoco_batch_mj210
     # (conf/env sets each task's default); source: project (spn_torchrl/envs)
     backend: str = "gymnasium"
-    # mujoco_batch: physics threads of each env (the other backends step in one thread); source: project
+    # mujoco_batch(_mj210): physics threads of each env; gym_v2: worker processes of each env (the others step in
+    # one thread); source: project
     threads: int = 1
     # mujoco_warp: "cpu", "cuda" or "cuda:<index>" (the other backends run on the CPU); source: project
     device: str = "cpu"
@@ -285,10 +294,10 @@ class EnvConfig:
         _choice(f"{at}.backend", self.backend, BACKENDS)
         _int_in(f"{at}.threads", self.threads, 1, 256)
         _check(
-            self.threads == 1 or self.backend == "mujoco_batch",
+            self.threads == 1 or self.backend in ("mujoco_batch", "mujoco_batch_mj210", "gym_v2"),
             f"{at}.threads",
             self.threads,
-            f"1 for env.backend={self.backend} (only mujoco_batch runs physics threads)",
+            f"1 for env.backend={self.backend} (only mujoco_batch and gym_v2 step on several threads or processes)",
         )
         device_ok = isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None
         _check(device_ok, f"{at}.device", self.device, "cpu, cuda or cuda:<index>")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -434,9 +434,11 @@ def summarize(
     strict: bool = False,
     fallback_levels: dict[str, tuple[float, str]] | None = None,
     published: dict[str, dict[str, tuple[int, float, float]]] | None = None,
+    seeds: Collection[int] | None = None,
 ) -> tuple[list[RunRecord], dict[str, Any], dict[str, str]]:
-    """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only), draw one
-    figure per task into ``out``; ``(runs, {env: summary}, {env: figure path})``.
+    """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only; ``seeds``:
+    only the runs of those seeds, though every run found is returned), draw one figure per task into ``out``;
+    ``(runs, {env: summary}, {env: figure path})``.
 
     R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source; the
     source's words before " (" label the figure's line).
@@ -451,7 +453,8 @@ def summarize(
     out.mkdir(parents=True, exist_ok=True)
     summaries: dict[str, Any] = {}
     figures: dict[str, str] = {}
-    for env, algos in group_runs(runs).items():
+    chosen = runs if seeds is None else [run for run in runs if run.seed in seeds]
+    for env, algos in group_runs(chosen).items():
         pools, left = choose_pools(algos, strict)
         task_level, source, note = level, "--ppo-level", ""
         if task_level is None and PPO_LEVEL_ALGO not in pools and env in (fallback_levels or {}):

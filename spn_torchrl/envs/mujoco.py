@@ -201,11 +201,12 @@ class DataSimulations:
 class MujocoBatchEnv(BatchEnv):
     """P simulations of one task on ``num_threads`` MuJoCo threads, as a TorchRL env of batch size [P]."""
 
-    def __init__(self, env_id: str, num_envs: int, num_threads: int = 1) -> None:
+    def __init__(self, env_id: str, num_envs: int, num_threads: int = 1, model: mujoco.MjModel | None = None) -> None:
+        """``model``: the task's model, changed (e.g. :mod:`~spn_torchrl.envs.mujoco210`); None: from its XML."""
         task = batch_task(env_id)
         self.env_id = env_id
         self.task = task
-        self.model = mujoco.MjModel.from_xml_path(expand_model_path(task.xml))
+        self.model = mujoco.MjModel.from_xml_path(expand_model_path(task.xml)) if model is None else model
         m = self.model
         p = num_envs
         low = torch.as_tensor(m.actuator_ctrlrange[:, 0], dtype=torch.float32)
