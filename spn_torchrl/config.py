@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf.errors import InterpolationValidationError, OmegaConfBaseException
 
 from spn_torchrl.errors import ConfigError
 
@@ -376,7 +376,15 @@ def _schema_of(group: str, node: Any) -> type | None:
 def to_run_config(cfg: DictConfig | dict) -> RunConfig:
     """The typed, validated config of a composed (or saved) one; ConfigError naming the first bad field."""
     cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
-    plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    try:
+        plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    except InterpolationValidationError as err:  # its message echoes the value, which may be a secret (oc.env)
+        raise ConfigError(
+            f"{err.full_key}: its interpolation gives a value of the wrong type for the field (value not shown)"
+        ) from None
+    except OmegaConfBaseException as err:
+        key = getattr(err, "full_key", None) or "config"
+        raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
     for group in ("algo", "evaluator"):
         node = plain.get(group)
         schema = _schema_of(group, node)
