@@ -62,8 +62,11 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def _safe(path: str) -> bool:
-    return any(path == s or path.startswith(f"{s}.") for s in SAFE)
+def affects_results(path: str, kind: str) -> bool:
+    """Whether a config field (a dotted path) can change a run's results: not :data:`SAFE`, :data:`UNCOMPARED` or
+    the budget of ``kind``."""
+    safe = any(path == s or path.startswith(f"{s}.") for s in SAFE)
+    return not (safe or path in UNCOMPARED or path == BUDGET.get(kind))
 
 
 def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) -> tuple[list[str], list[str]]:
@@ -75,7 +78,7 @@ def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) 
         if old == now or path in UNCOMPARED:
             continue
         change = f"{path} {old!r} -> {now!r}"
-        (allowed if _safe(path) or path == BUDGET[kind] else refused).append(change)
+        (refused if affects_results(path, kind) else allowed).append(change)
     return refused, allowed
 
 
