@@ -64,6 +64,12 @@ def _number(
     _check(ok, name, value, f"a finite number in {left}, {right}")
 
 
+def _file_name(name: str, value: Any) -> None:
+    """A name that becomes part of a path (logs/, a collected run's directory): one file name, never a way out."""
+    ok = isinstance(value, str) and re.fullmatch(r"[A-Za-z0-9_.+=-]+", value) is not None and value not in (".", "..")
+    _check(ok, name, value, "a file name of letters, digits and _ . + = - (no path separator, not '.' or '..')")
+
+
 def _choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
     _check(value in choices, name, value, f"one of {', '.join(map(repr, choices))}")
 
@@ -105,6 +111,7 @@ class GAConfig:
     init_from_fixed_weights: bool = False  # option (Weights-GA): start around the Kaiming weights, not 0
 
     def validate(self, at: str = "algo") -> None:
+        _file_name(f"{at}.name", self.name)
         _choice(f"{at}.genome", self.genome, GENOMES)
         _int_in(f"{at}.generations", self.generations, 1, MAX_SIZE)
         _int_in(f"{at}.population", self.population, 2, MAX_SIZE)
@@ -158,6 +165,7 @@ class PPOConfig:
     score_init_std: float = 0.01
 
     def validate(self, at: str = "algo") -> None:
+        _file_name(f"{at}.name", self.name)
         _choice(f"{at}.policy", self.policy, POLICIES)
         _int_in(f"{at}.frames_per_batch", self.frames_per_batch, 1, 1_000_000)
         _int_in(f"{at}.total_env_steps", self.total_env_steps, self.frames_per_batch, 10**10)
@@ -201,7 +209,7 @@ class EnvConfig:
     device: str = "cpu"  # mujoco_warp: "cpu", "cuda" or "cuda:<index>" (the other backends run on the CPU)
 
     def validate(self, at: str = "env") -> None:
-        _check(isinstance(self.name, str) and bool(self.name), f"{at}.name", self.name, "a non-empty name")
+        _file_name(f"{at}.name", self.name)
         _check(isinstance(self.id, str) and bool(self.id), f"{at}.id", self.id, "a Gymnasium environment id")
         _choice(f"{at}.backend", self.backend, BACKENDS)
         _int_in(f"{at}.threads", self.threads, 1, 256)
@@ -309,6 +317,8 @@ class RunConfig:
         self.evaluator.validate("evaluator")
         _int_in("seed", self.seed, 0, MAX_SEED)
         _int_in("torch_threads", self.torch_threads, 1, 256)
+        if self.run_name is not None:
+            _file_name("run_name", self.run_name)
         if isinstance(self.evaluator, RayEvaluatorConfig):
             _check(
                 isinstance(self.algo, GAConfig),

@@ -136,3 +136,13 @@ def test_an_interpolation_of_the_wrong_type_is_one_sentence_that_hides_its_value
     proc = run_train(tmp_path, *BASE, "algo.generations=1", "seed=${oc.env:MYSECRET}", check=False)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr and "s3cr3t" not in proc.stderr + proc.stdout
     assert last_line(proc).startswith("error: seed: ")
+
+
+@pytest.mark.parametrize("override", ["env.name=../../escaped", "run_name=a/b", "algo.name=.."])
+def test_a_name_that_would_leave_the_run_directory_is_refused(tmp_path, override):
+    run_dir = tmp_path / "a" / "b"
+    proc = run_train(run_dir, *BASE, "algo.generations=1", override, check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    field = override.split("=")[0]
+    assert last_line(proc).startswith(f"error: {field} must be a file name of letters, digits")
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) in ([], ["train.log"])
