@@ -29,6 +29,10 @@ class RunLockedError(SpnError):
     """The run directory is held by another live run."""
 
 
+class NonFiniteError(SpnError):
+    """A return, loss or genome became NaN or infinite: the run stops after its last finite checkpoint."""
+
+
 class RunInterrupted(BaseException):
     """SIGINT or SIGTERM stopped a run; its checkpoint is consistent and it can be resumed. A BaseException, as
     KeyboardInterrupt is, so that no library's ``except Exception`` swallows it."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import logging
+import math
 import os
 import signal
 import sys
@@ -20,11 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import torch
 from omegaconf import OmegaConf
 
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, config_dict, config_yaml
-from spn_torchrl.errors import CheckpointError, ConfigError, RunInterrupted, RunLockedError
+from spn_torchrl.errors import CheckpointError, ConfigError, NonFiniteError, RunInterrupted, RunLockedError
 from spn_torchrl.records import (
     Progress,
     close_logger,
@@ -96,6 +98,7 @@ class Run:
     logger: Any = None
     wandb_id: str | None = None
     progress: Progress | None = None
+    saved: str | None = None  # the last checkpoint written or resumed: "generation 3", "iteration 2"
 
     def record(self, row: Mapping[str, Any], step: int, prefix: Mapping[str, str] | None = None) -> None:
         """Add a row and log it (metrics under ``train/``, or the prefix a column names); progress.csv gets it with
@@ -124,6 +127,33 @@ class Run:
             )
             if self.rows:
                 self.progress.write(self.rows)
+            self.saved = _step_name(state)
+
+    def require_finite(self, what: str, values: Any, at: str) -> None:
+        """Stop the run with :class:`NonFiniteError` (one sentence naming ``what``, ``at`` and the last finite
+        checkpoint) where ``values`` (a tensor, a number, or several) hold a NaN or an infinity."""
+        if _finite(values):
+            return
+        kept = (
+            f"{self.dir} holds its last finite checkpoint ({self.saved})" if self.saved else "no checkpoint was written"
+        )
+        raise NonFiniteError(f"{what} became NaN or infinite in {at}: the run stopped there; {kept}")
+
+
+def _finite(values: Any) -> bool:
+    if isinstance(values, (list, tuple)):
+        return all(_finite(v) for v in values)
+    if isinstance(values, torch.Tensor):
+        return bool(torch.isfinite(values).all())
+    return math.isfinite(float(values))
+
+
+def _step_name(state: Mapping[str, Any]) -> str | None:
+    """``generation 3`` or ``iteration 2``: what a checkpoint's state holds."""
+    for key in ("generation", "iteration"):
+        if key in state:
+            return f"{key} {state[key]}"
+    return None
 
 
 def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]) -> dict[str, Any] | None:
@@ -231,6 +261,7 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
     run = Run(run_dir, cfg, name, kind, meta, state)
     if state is not None:
         run.name, run.wandb_id, run.rows = state["run_name"], state["wandb_id"], list(state["rows"])
+        run.saved = _step_name(state)
     run.progress = Progress(run_dir / PROGRESS_NAME)
     if run.rows:
         run.progress.write(run.rows)  # progress.csv is the checkpoint's rows, even if it was lost or cut

@@ -146,3 +146,25 @@ def test_a_name_that_would_leave_the_run_directory_is_refused(tmp_path, override
     field = override.split("=")[0]
     assert last_line(proc).startswith(f"error: {field} must be a file name of letters, digits")
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) in ([], ["train.log"])
+
+
+@pytest.mark.parametrize(
+    "method,what,sentence",
+    [
+        (
+            ["algo=weights_ga", *BASE, "algo.generations=2", "algo.sigma=1e300"],
+            "a genome of the population (algo.sigma=1e+300)",
+            "generation 1: the run stopped there; no checkpoint was written",
+        ),
+        (
+            [*PPO, "env=cartpole", "algo.total_env_steps=1000", "algo.lr_policy=1e30"],
+            "the PPO loss",
+            "iteration 1: the run stopped there; no checkpoint was written",
+        ),
+    ],
+)
+def test_a_non_finite_value_ends_the_run_in_one_sentence(tmp_path, method, what, sentence):
+    proc = run_train(tmp_path, *method, check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert last_line(proc) == f"error: {what} became NaN or infinite in {sentence}"
+    assert not (tmp_path / "progress.csv").exists()

@@ -160,8 +160,11 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             }
         )
 
-    def rollout(genomes: torch.Tensor, seeds: np.ndarray) -> Episodes:
+    def rollout(genomes: torch.Tensor, seeds: np.ndarray, generation: int) -> Episodes:
+        at = f"generation {generation}"
+        run.require_finite(f"a genome of the population (algo.sigma={algo.sigma:g})", genomes, at)
         result = evaluator(genomes, seeds)
+        run.require_finite("an episode return", result.returns, at)
         since_row["steps"] += result.total_steps
         return result
 
@@ -176,7 +179,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             if pending is not None:
                 for part, into in zip(reevaluation(pending), (genomes, seeds)):
                     into.append(part)
-            result = rollout(torch.cat(genomes), np.concatenate(seeds))
+            result = rollout(torch.cat(genomes), np.concatenate(seeds), generation)
             fitness_eps = result.part(0, n)
             if pending is not None:
                 finish(pending, result.part(n, result.returns.numel()))
@@ -198,7 +201,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             )
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
-            finish(pending, rollout(*reevaluation(pending)))
+            finish(pending, rollout(*reevaluation(pending), pending["generation"]))
             pending = None
             save(algo.generations)
     finally:

@@ -182,6 +182,8 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     optim = torch.optim.Adam(
         [{"params": actor.parameters(), "lr": algo.lr_policy}, {"params": critic.parameters(), "lr": algo.lr_value}]
     )
+    params = [*actor.parameters(), *critic.parameters()]
+    lrs = f"algo.lr_policy={algo.lr_policy:g}, algo.lr_value={algo.lr_value:g}"
     counts = Counts()
     wall = 0.0
     if run.state is not None:
@@ -232,9 +234,11 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                     batch = buffer.sample()
                     loss = loss_module(batch)
                     total = loss["loss_objective"] + loss["loss_critic"]
+                    run.require_finite("the PPO loss", total.detach(), f"iteration {iteration}")
                     optim.zero_grad()
                     total.backward()
                     optim.step()
+                    run.require_finite(f"a network parameter ({lrs})", params, f"iteration {iteration}")
                     n = batch.numel()
                     counts.add(policy_forward=n, policy_backward=n, value_forward=n, value_backward=n)
                     for key in sums:
@@ -251,6 +255,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                 )
                 counts.add(eval_policy_forward=samples)
                 eval_return = float(returns.mean())
+                run.require_finite("the evaluation return", eval_return, f"iteration {iteration}")
             t1 = time.perf_counter()
             seconds, t0 = t1 - t0, t1
             wall += seconds
