@@ -18,7 +18,7 @@ from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf.errors import InterpolationValidationError, OmegaConfBaseException
 
 from spn_torchrl.errors import ConfigError
 
@@ -73,6 +73,12 @@ def _number(
     _check(ok, name, value, f"a finite number in {left}, {right}")
 
 
+def _file_name(name: str, value: Any) -> None:
+    """A name that becomes part of a path (logs/, a collected run's directory): one file name, never a way out."""
+    ok = isinstance(value, str) and re.fullmatch(r"[A-Za-z0-9_.+=-]+", value) is not None and value not in (".", "..")
+    _check(ok, name, value, "a file name of letters, digits and _ . + = - (no path separator, not '.' or '..')")
+
+
 def _choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
     _check(value in choices, name, value, f"one of {', '.join(map(repr, choices))}")
 
@@ -119,6 +125,7 @@ class GAConfig:
     init_from_fixed_weights: bool = False
 
     def validate(self, at: str = "algo") -> None:
+        _file_name(f"{at}.name", self.name)
         _choice(f"{at}.genome", self.genome, GENOMES)
         _int_in(f"{at}.generations", self.generations, 1, MAX_SIZE)
         _int_in(f"{at}.population", self.population, 2, MAX_SIZE)
@@ -240,6 +247,7 @@ class PPOConfig:
     score_init_std: float = 0.01  # Connections-PPO: the initial scores' std (the GA's sigma); source: project
 
     def validate(self, at: str = "algo") -> None:
+        _file_name(f"{at}.name", self.name)
         _choice(f"{at}.policy", self.policy, POLICIES)
         _int_in(f"{at}.frames_per_batch", self.frames_per_batch, 1, 1_000_000)
         _int_in(f"{at}.total_env_steps", self.total_env_steps, self.frames_per_batch, 10**10)
@@ -289,7 +297,7 @@ class EnvConfig:
     device: str = "cpu"
 
     def validate(self, at: str = "env") -> None:
-        _check(isinstance(self.name, str) and bool(self.name), f"{at}.name", self.name, "a non-empty name")
+        _file_name(f"{at}.name", self.name)
         _check(isinstance(self.id, str) and bool(self.id), f"{at}.id", self.id, "a Gymnasium environment id")
         _choice(f"{at}.backend", self.backend, BACKENDS)
         _int_in(f"{at}.threads", self.threads, 1, 256)
@@ -430,6 +438,8 @@ class RunConfig:
             self.normalize_observations,
             "false for env.backend=mujoco_warp (its device loop does not gather observation statistics yet)",
         )
+        if self.run_name is not None:
+            _file_name("run_name", self.run_name)
         if isinstance(self.evaluator, RayEvaluatorConfig):
             _check(
                 isinstance(self.algo, EVOLUTION),
@@ -498,7 +508,15 @@ def _schema_of(group: str, node: Any) -> type | None:
 def to_run_config(cfg: DictConfig | dict) -> RunConfig:
     """The typed, validated config of a composed (or saved) one; ConfigError naming the first bad field."""
     cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
-    plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    try:
+        plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    except InterpolationValidationError as err:  # its message echoes the value, which may be a secret (oc.env)
+        raise ConfigError(
+            f"{err.full_key}: its interpolation gives a value of the wrong type for the field (value not shown)"
+        ) from None
+    except OmegaConfBaseException as err:
+        key = getattr(err, "full_key", None) or "config"
+        raise ConfigError(f"{key}: {str(err).splitlines()[0]}") from None
     for group in ("algo", "evaluator"):
         node = plain.get(group)
         schema = _schema_of(group, node)

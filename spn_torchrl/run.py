@@ -14,7 +14,7 @@ from spn_torchrl.config import EVOLUTION, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
 from spn_torchrl.envs.mujoco_warp import torch_device
 from spn_torchrl.errors import RunInterrupted, require
-from spn_torchrl.lifecycle import resume_hint, signals_interrupt
+from spn_torchrl.lifecycle import resume_hint, run_lock, signals_interrupt
 from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.training.evolve import evolve
 from spn_torchrl.training.ppo import train_ppo
@@ -65,7 +65,7 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
     torch.set_num_threads(typed.torch_threads)
     train = evolve if isinstance(typed.algo, EVOLUTION) else train_ppo
     try:
-        with signals_interrupt():
+        with signals_interrupt(), run_lock(out):
             return train(typed, out, run_name(typed))
     except RunInterrupted as err:
         err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)

@@ -28,6 +28,7 @@ from spn_torchrl.analysis.runs import (
     longer_groups,
     pool_choice,
     pooled,
+    split_duplicates,
     split_finished,
 )
 from spn_torchrl.envs import task_spec
@@ -299,6 +300,14 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
             )
     for algo, entries in s.get("left_out", {}).items():
         out.append(f"- {algo}: no run reached its budget, none pooled: {_progress_list(entries)}.")
+    for algo, entries in s.get("duplicates", {}).items():
+        repeated = "; ".join(f"seed {e['seed']} ({e['path']})" for e in entries)
+        out.append(f"- {algo}: a seed run more than once counts once (its first run by path); left out: {repeated}.")
+    mixed = [algo for algo in s["methods"] if " (" in algo]
+    if mixed:
+        out.append(
+            f"- runs of one method with different results-affecting configs are listed apart: {', '.join(mixed)}."
+        )
     return out + [""] if out else []
 
 
@@ -455,12 +464,18 @@ def summarize(
     figures: dict[str, str] = {}
     chosen = runs if seeds is None else [run for run in runs if run.seed in seeds]
     for env, algos in group_runs(chosen).items():
+        repeats: dict[str, list[RunRecord]] = {}
+        for algo in algos:
+            algos[algo], repeated = split_duplicates(algos[algo])
+            if repeated:
+                repeats[algo] = repeated
         pools, left = choose_pools(algos, strict)
         task_level, source, note = level, "--ppo-level", ""
         if task_level is None and PPO_LEVEL_ALGO not in pools and env in (fallback_levels or {}):
             task_level, source = fallback_levels[env]
             note = source.split(" (")[0]
         summary = task_summary(env, pools, task_level, source, left)
+        summary["duplicates"] = {algo: [left_out_entry(run) for run in rs] for algo, rs in sorted(repeats.items())}
         summaries[env] = summary
         if pools:
             reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}

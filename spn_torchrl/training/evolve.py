@@ -16,7 +16,6 @@ import torch
 from spn_torchrl import checkpoint
 from spn_torchrl.config import ECConfig, GAConfig, RunConfig
 from spn_torchrl.envs import TaskSpec, task_spec
-from spn_torchrl.errors import ConfigError
 from spn_torchrl.evaluation import make_evaluator
 from spn_torchrl.evaluation.rollout import Episodes, spike_rate
 from spn_torchrl.lifecycle import Run, open_run
@@ -86,11 +85,7 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     spec = task_spec(cfg.env.id)
     with open_run(cfg, run_dir, run_name, cfg.algo.kind, run_meta(cfg, spec)) as run:
         state = run.state or initial_state(cfg.algo, spec, cfg.seed, cfg.normalize_observations)
-        done = state["generation"]
-        if cfg.algo.generations < done:
-            raise ConfigError(
-                f"algo.generations={cfg.algo.generations} is below the {done} generations {run_dir} has done"
-            )
+        done = state["generation"]  # at most algo.generations: open_run refuses a smaller budget
         if done == cfg.algo.generations and state["pending"] is None:
             log.info("%s already ran its %d generations", run_dir, done)
             return run.rows[-1] if run.rows else {}
@@ -195,8 +190,12 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             return torch.empty(2, 0, spec.n_obs)
         return torch.stack([torch.stack(list(part)) for part in zip(*elite_norms)])
 
-    def rollout(genomes: torch.Tensor, seeds: np.ndarray, norm: observations.Norm | None) -> Episodes:
+    def rollout(genomes: torch.Tensor, seeds: np.ndarray, norm: observations.Norm | None, generation: int) -> Episodes:
+        at = f"generation {generation}"
+        if isinstance(algo, GAConfig):  # EC's genomes are masks written as +-inf (ec.mask_genomes)
+            run.require_finite(f"a genome of the population (algo.sigma={algo.sigma:g})", genomes, at)
         result = evaluator(genomes, seeds) if norm is None else evaluator(genomes, seeds, norm)
+        run.require_finite("an episode return", result.returns, at)
         since_row["steps"] += result.total_steps
         return result
 
@@ -225,7 +224,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             if pending is not None:
                 for part, into in zip(reevaluation(pending), (genomes, seeds, norms)):
                     into.append(part)
-            result = rollout(torch.cat(genomes), np.concatenate(seeds), joined(norms))
+            result = rollout(torch.cat(genomes), np.concatenate(seeds), joined(norms), generation)
             fitness_eps = result.part(0, n)
             if pending is not None:
                 finish(pending, result.part(n, result.returns.numel()))
@@ -244,7 +243,7 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             population = method.advance(population, fitness, generator)
             save(generation)
         if pending is not None:  # the last generation's re-evaluation, alone
-            finish(pending, rollout(*reevaluation(pending)))
+            finish(pending, rollout(*reevaluation(pending), pending["generation"]))
             pending = None
             save(algo.generations)
     finally:

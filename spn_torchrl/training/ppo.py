@@ -33,7 +33,6 @@ from torchrl.objectives.value import GAE
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig
 from spn_torchrl.envs import TaskSpec, make_transformed_env, task_spec
-from spn_torchrl.errors import ConfigError
 from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import COLLECTION, EVALUATION, episode_seed
 from spn_torchrl.snn import observations
@@ -174,12 +173,7 @@ def train_ppo(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     spec = task_spec(cfg.env.id)
     with open_run(cfg, run_dir, run_name, "ppo", run_meta(cfg, spec)) as run:
         iterations = cfg.algo.total_env_steps // cfg.algo.frames_per_batch
-        done = 0 if run.state is None else run.state["iteration"]
-        if iterations < done:
-            raise ConfigError(
-                f"algo.total_env_steps={cfg.algo.total_env_steps} is below the {done * cfg.algo.frames_per_batch} "
-                f"env steps {run_dir} has done"
-            )
+        done = 0 if run.state is None else run.state["iteration"]  # at most iterations: open_run refuses fewer
         if done == iterations:
             log.info("%s already ran its %d iterations", run_dir, iterations)
             return run.rows[-1] if run.rows else {}
@@ -210,6 +204,8 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     optim = torch.optim.Adam(
         [{"params": actor.parameters(), "lr": algo.lr_policy}, {"params": critic.parameters(), "lr": algo.lr_value}]
     )
+    params = [*actor.parameters(), *critic.parameters()]
+    lrs = f"algo.lr_policy={algo.lr_policy:g}, algo.lr_value={algo.lr_value:g}"
     counts = Counts()
     wall = 0.0
     stats = observations.initial_stats(spec.n_obs) if cfg.normalize_observations else None
@@ -264,9 +260,11 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                     batch = buffer.sample()
                     loss = loss_module(batch)
                     total = loss["loss_objective"] + loss["loss_critic"]
+                    run.require_finite("the PPO loss", total.detach(), f"iteration {iteration}")
                     optim.zero_grad()
                     total.backward()
                     optim.step()
+                    run.require_finite(f"a network parameter ({lrs})", params, f"iteration {iteration}")
                     n = batch.numel()
                     counts.add(policy_forward=n, policy_backward=n, value_forward=n, value_backward=n)
                     for key in sums:
@@ -286,6 +284,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                 )
                 counts.add(eval_policy_forward=samples)
                 eval_return = float(returns.mean())
+                run.require_finite("the evaluation return", eval_return, f"iteration {iteration}")
             t1 = time.perf_counter()
             seconds, t0 = t1 - t0, t1
             wall += seconds
