@@ -60,7 +60,7 @@ def evotorch_generation(problem_kind: str, env_id: str, population: int, episode
     searcher.step()
     seconds = time.perf_counter() - t0
     steps = problem.interaction_count - before
-    if actors:
+    if problem.actors:  # num_actors=1 may run in this process (no actor to stop)
         problem.kill_actors()
     return steps / seconds
 
