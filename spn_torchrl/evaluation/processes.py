@@ -105,9 +105,11 @@ class ProcessEvaluator:
             self.close()
             raise
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
-        requests = shard_requests(self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes")
-        asked = [(index, ("evaluate", (shard, shard_seeds))) for index, _, _, shard, shard_seeds in requests]
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, runs: np.ndarray | None = None) -> Episodes:
+        requests = shard_requests(
+            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", runs
+        )
+        asked = [(index, ("evaluate", (shard, seeds_, runs_))) for index, _, _, shard, seeds_, runs_ in requests]
         return merge(self._ask(asked, "evaluate"))
 
     def gather(self, query: str) -> list:

@@ -46,13 +46,13 @@ class RayEvaluator:
         self.bytes_sent = 0  # genomes and seeds, every call
         self.bytes_received = 0  # returns, steps, spikes, every call
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, runs: np.ndarray | None = None) -> Episodes:
         calls = []
-        for index, start, stop, shard, shard_seeds in shard_requests(
-            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors"
+        for index, start, stop, shard, shard_seeds, shard_runs in shard_requests(
+            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors", runs
         ):
             self.bytes_sent += shard.nbytes + shard_seeds.nbytes  # + an int64 seed per genome
-            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seeds)))
+            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seeds, shard_runs)))
         deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
         return merge([self._collect(*call, deadline) for call in calls])
 

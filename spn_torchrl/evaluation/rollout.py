@@ -72,13 +72,15 @@ class PopulationEvaluator:
             raise ValueError(f"the evaluator steps an env of batch [P], got {tuple(self.shape)}")
         self._td: TensorDictBase | None = None
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, runs: np.ndarray | None = None) -> Episodes:
+        """One episode per genome, slot i reset with ``seeds[i]``; ``runs`` [B] names each genome's run where the
+        SPN holds several runs' fixed weights (:class:`~spn_torchrl.snn.policies.PopulationSPN`)."""
         count = genomes.shape[0]
         if not 0 < count <= self.size:
             raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
         idle = np.zeros(self.size - count, dtype=np.int64)  # any seed: idle slots are never counted
         seeds = np.concatenate([slot_seeds(seeds, count), idle])
-        self.spn.set_genomes(genomes)
+        self.spn.set_genomes(genomes, None if runs is None else torch.from_numpy(np.asarray(runs, dtype=np.int64)))
         if self.on_device:
             return self._run_on_device(count, seeds)
         active = torch.arange(self.size) < count
@@ -156,8 +158,9 @@ class PopulationEvaluator:
 
 
 class Evaluator(Protocol):
-    """What the GA loop needs: genomes [B, D] and their env seeds [B] in, one episode per genome out."""
+    """What the GA loop needs: genomes [B, D] and their env seeds [B] in, one episode per genome out (``runs``:
+    each genome's run, for an SPN that holds several runs' fixed weights)."""
 
-    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray) -> Episodes: ...
+    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray, runs: np.ndarray | None = None) -> Episodes: ...
 
     def close(self) -> None: ...

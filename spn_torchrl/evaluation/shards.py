@@ -46,16 +46,26 @@ def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
 
 
 def shard_requests(
-    spn: PopulationSPN, genomes: torch.Tensor, seeds: int | np.ndarray, parts: int, capacity: int, holders: str
-) -> list[tuple[int, int, int, np.ndarray, np.ndarray]]:
+    spn: PopulationSPN,
+    genomes: torch.Tensor,
+    seeds: int | np.ndarray,
+    parts: int,
+    capacity: int,
+    holders: str,
+    runs: np.ndarray | None = None,
+) -> list[tuple[int, int, int, np.ndarray, np.ndarray, np.ndarray | None]]:
     """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, their env
-    seeds) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
+    seeds, their runs or None) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
     count = genomes.shape[0]
     if not 0 < count <= capacity:
         raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
     payload, seeds = encode_genomes(spn, genomes), slot_seeds(seeds, count)
     bounds = enumerate(shard_bounds(count, parts))
-    return [(i, start, stop, payload[start:stop], seeds[start:stop]) for i, (start, stop) in bounds if stop > start]
+    return [
+        (i, start, stop, payload[start:stop], seeds[start:stop], None if runs is None else runs[start:stop])
+        for i, (start, stop) in bounds
+        if stop > start
+    ]
 
 
 def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
@@ -95,8 +105,8 @@ class ShardWorker:
     def ready(self) -> int:
         return self.evaluator.size
 
-    def evaluate(self, payload: np.ndarray, seeds: np.ndarray) -> Results:
-        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seeds)
+    def evaluate(self, payload: np.ndarray, seeds: np.ndarray, runs: np.ndarray | None = None) -> Results:
+        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seeds, runs)
         return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
 
     def peak_memory_mb(self) -> float:
