@@ -56,6 +56,22 @@ def initial_state(algo: GAConfig, spec: TaskSpec, seed: int) -> dict[str, Any]:
     }
 
 
+def start_state(cfg: RunConfig, spec: TaskSpec, run: Run) -> dict[str, Any] | None:
+    """The state an open run goes on from (a new run's generation 0), or None when it has run its generations;
+    ConfigError for a budget below what it has done."""
+    state = run.state or initial_state(cfg.algo, spec, cfg.seed)
+    done = state["generation"]
+    if cfg.algo.generations < done:
+        raise ConfigError(f"algo.generations={cfg.algo.generations} is below the {done} generations {run.dir} has done")
+    if done == cfg.algo.generations and state["pending"] is None:
+        log.info("%s already ran its %d generations", run.dir, done)
+        return None
+    if run.state is not None:
+        waiting = "" if state["pending"] is None else "; its row follows its elite's re-evaluation"
+        log.info("resuming %s after generation %d%s", run.dir, done, waiting)
+    return state
+
+
 def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """Run (or resume) the GA of SPEC.md; returns the last generation's metrics.
 
@@ -68,51 +84,105 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """
     spec = task_spec(cfg.env.id)
     with open_run(cfg, run_dir, run_name, "ga", run_meta(cfg, spec)) as run:
-        state = run.state or initial_state(cfg.algo, spec, cfg.seed)
-        done = state["generation"]
-        if cfg.algo.generations < done:
-            raise ConfigError(
-                f"algo.generations={cfg.algo.generations} is below the {done} generations {run_dir} has done"
-            )
-        if done == cfg.algo.generations and state["pending"] is None:
-            log.info("%s already ran its %d generations", run_dir, done)
+        state = start_state(cfg, spec, run)
+        if state is None:
             return run.rows[-1] if run.rows else {}
-        if run.state is not None:
-            waiting = "" if state["pending"] is None else "; its row follows its elite's re-evaluation"
-            log.info("resuming %s after generation %d%s", run_dir, done, waiting)
-        return _generations(cfg, spec, run, state)
+        loop = Generations(cfg, spec, run, state)
+        evaluator = make_evaluator(cfg, spec, loop.spn)
+        try:
+            while (request := loop.next_rollout()) is not None:
+                loop.take(evaluator(*request))
+        finally:
+            evaluator.close()
+        return loop.row
 
 
-def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]) -> dict[str, Any]:
-    """The GA loop from ``state`` to ``algo.generations``, recording each generation's row and checkpoint."""
-    algo = cfg.algo
-    generator = torch.Generator()
-    generator.set_state(state["rng"])
-    w1, w2 = state["w1"], state["w2"]
-    population, start, pending = state["population"], state["generation"], state["pending"]
-    elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
-    spn = spn_from_config(algo.snn, algo.genome, spec, w1, w2)
-    k, episodes, n = algo.elite_candidates, algo.elite_episodes, algo.population
-    row: dict[str, Any] = {}
-    started = time.perf_counter()
-    since_row = {"steps": 0, "wall": wall}  # env steps run and wall time at the previous row
+class Generations:
+    """One GA run's loop from ``state`` to ``algo.generations``, a rollout at a time: :meth:`next_rollout` gives
+    the genomes and env seeds of its next rollout (None: done), :meth:`take` its episodes: a generation's
+    selection and checkpoint, and the previous generation's row once its elite is re-evaluated. Several runs in
+    lockstep (:mod:`spn_torchrl.training.lockstep`) share each rollout."""
 
-    def elapsed() -> float:
+    def __init__(self, cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any], label: str = "") -> None:
+        self.cfg, self.run, self.label = cfg, run, label
+        self.generator = torch.Generator()
+        self.generator.set_state(state["rng"])
+        self.w1, self.w2 = state["w1"], state["w2"]
+        self.population, self.generation, self.pending = state["population"], state["generation"], state["pending"]
+        self.elites, self.total_steps, self.wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
+        self.spn = spn_from_config(cfg.algo.snn, cfg.algo.genome, spec, self.w1, self.w2)
+        self.row: dict[str, Any] = {}
+        self.started = time.perf_counter()
+        self.since_row = {"steps": 0, "wall": self.wall}  # env steps run and wall time at the previous row
+
+    def elapsed(self) -> float:
         """Wall time of the run so far, earlier segments of a resumed run included."""
-        return wall + time.perf_counter() - started
+        return self.wall + time.perf_counter() - self.started
 
-    def finish(pending: dict[str, Any], reeval: Episodes) -> None:
-        """Pick the elite of a pending generation from its re-evaluation; record its row."""
-        nonlocal total_steps, row
-        now = elapsed()
+    def next_rollout(self) -> tuple[torch.Tensor, np.ndarray] | None:
+        """The genomes and env seeds of the next rollout: the next generation's population with the pending
+        generation's re-evaluation, the last generation's re-evaluation alone, or None once the run is done."""
+        algo = self.cfg.algo
+        parts: list[tuple[torch.Tensor, np.ndarray]] = []
+        if self.generation < algo.generations:
+            seeds = episode_seeds(self.cfg.seed, self.generation + 1, FITNESS, algo.population)
+            parts.append((self.population, seeds))
+        if self.pending is not None:
+            parts.append(self._reevaluation())
+        if not parts:
+            return None
+        return torch.cat([genomes for genomes, _ in parts]), np.concatenate([seeds for _, seeds in parts])
+
+    def take(self, result: Episodes) -> None:
+        """The episodes of the rollout :meth:`next_rollout` asked for: select, record and checkpoint."""
+        algo = self.cfg.algo
+        self.since_row["steps"] += result.total_steps
+        if self.generation == algo.generations:  # the last generation's re-evaluation, alone
+            self._finish(result)
+            self.pending = None
+            self._save()
+            return
+        n = algo.population
+        fitness_eps = result.part(0, n)
+        if self.pending is not None:
+            self._finish(result.part(n, result.returns.numel()))
+        self.generation += 1
+        fitness = fitness_eps.returns
+        self.pending = {
+            "generation": self.generation,
+            "population": self.population,
+            "fitness": fitness,
+            "steps": fitness_eps.total_steps,
+            "candidates": ga.elite_candidates(fitness, algo.elite_candidates),
+        }
+        self.population = ga.next_generation(
+            self.population,
+            fitness,
+            sigma=algo.sigma,
+            truncation=algo.truncation,
+            generator=self.generator,
+            elitism=algo.elitism,
+        )
+        self._save()
+
+    def _reevaluation(self) -> tuple[torch.Tensor, np.ndarray]:
+        k, episodes, pending = self.cfg.algo.elite_candidates, self.cfg.algo.elite_episodes, self.pending
+        genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
+        return genomes, episode_seeds(self.cfg.seed, pending["generation"], REEVALUATION, k * episodes)
+
+    def _finish(self, reeval: Episodes) -> None:
+        """Pick the elite of the pending generation from its re-evaluation; record its row."""
+        algo, pending = self.cfg.algo, self.pending
+        k, episodes = algo.elite_candidates, algo.elite_episodes
+        now = self.elapsed()
         candidates, fitness = pending["candidates"], pending["fitness"]
         elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
         elite = pending["population"][elite_index]
-        elites.append(elite.clone())
+        self.elites.append(elite.clone())
         slot = int((candidates == elite_index).nonzero()[0]) * episodes
-        mask1, mask2 = spn.masks(elite[None])
+        mask1, mask2 = self.spn.masks(elite[None])
         steps = pending["steps"] + reeval.total_steps
-        total_steps += steps
+        self.total_steps += steps
         generation = pending["generation"]
         rate = spike_rate(
             reeval.spikes[slot : slot + episodes],
@@ -120,92 +190,50 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             algo.snn.hidden,
             algo.snn.time_steps,
         )
-        row = {
+        since = self.since_row
+        self.row = {
             "generation": generation,
             "eval_return": elite_return,
             "best_fitness": float(fitness.max()),
             "mean_fitness": float(fitness.mean()),
             "env_steps": steps,
-            "total_env_steps": total_steps,
+            "total_env_steps": self.total_steps,
             "wall_time_s": round(now, 3),
-            "steps_per_s": round(since_row["steps"] / max(now - since_row["wall"], 1e-9), 1),
+            "steps_per_s": round(since["steps"] / max(now - since["wall"], 1e-9), 1),
             "mask_density": mask_density(mask1, mask2),
             "spike_rate": rate,
             "synapses_l1": int(mask1.sum()),
             "synapses_l2": int(mask2.sum()),
             "elite_index": elite_index,
         }
-        since_row.update(steps=0, wall=now)
-        run.record(row, step=generation)
+        since.update(steps=0, wall=now)
+        self.run.record(self.row, step=generation)
         log.info(
-            "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+            "%sgen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+            self.label,
             generation,
             algo.generations,
             elite_return,
-            row["best_fitness"],
-            row["mean_fitness"],
-            total_steps,
-            row["steps_per_s"],
-            row["mask_density"],
-            row["spike_rate"],
+            self.row["best_fitness"],
+            self.row["mean_fitness"],
+            self.total_steps,
+            self.row["steps_per_s"],
+            self.row["mask_density"],
+            self.row["spike_rate"],
         )
 
-    def save(generation: int) -> None:
-        run.save(
+    def _save(self) -> None:
+        w1, w2 = self.w1, self.w2
+        self.run.save(
             {
-                "generation": generation,
-                "population": population,
-                "pending": pending,
-                "rng": generator.get_state(),
+                "generation": self.generation,
+                "population": self.population,
+                "pending": self.pending,
+                "rng": self.generator.get_state(),
                 "w1": w1,
                 "w2": w2,
-                "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
-                "total_env_steps": total_steps,
-                "wall_time_s": elapsed(),
+                "elites": torch.stack(self.elites) if self.elites else torch.empty(0, genome_size(w1, w2)),
+                "total_env_steps": self.total_steps,
+                "wall_time_s": self.elapsed(),
             }
         )
-
-    def rollout(genomes: torch.Tensor, seeds: np.ndarray) -> Episodes:
-        result = evaluator(genomes, seeds)
-        since_row["steps"] += result.total_steps
-        return result
-
-    def reevaluation(pending: dict[str, Any]) -> tuple[torch.Tensor, np.ndarray]:
-        genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
-        return genomes, episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes)
-
-    evaluator = make_evaluator(cfg, spec, spn)
-    try:
-        for generation in range(start + 1, algo.generations + 1):
-            genomes, seeds = [population], [episode_seeds(cfg.seed, generation, FITNESS, n)]
-            if pending is not None:
-                for part, into in zip(reevaluation(pending), (genomes, seeds)):
-                    into.append(part)
-            result = rollout(torch.cat(genomes), np.concatenate(seeds))
-            fitness_eps = result.part(0, n)
-            if pending is not None:
-                finish(pending, result.part(n, result.returns.numel()))
-            fitness = fitness_eps.returns
-            pending = {
-                "generation": generation,
-                "population": population,
-                "fitness": fitness,
-                "steps": fitness_eps.total_steps,
-                "candidates": ga.elite_candidates(fitness, k),
-            }
-            population = ga.next_generation(
-                population,
-                fitness,
-                sigma=algo.sigma,
-                truncation=algo.truncation,
-                generator=generator,
-                elitism=algo.elitism,
-            )
-            save(generation)
-        if pending is not None:  # the last generation's re-evaluation, alone
-            finish(pending, rollout(*reevaluation(pending)))
-            pending = None
-            save(algo.generations)
-    finally:
-        evaluator.close()
-    return row
