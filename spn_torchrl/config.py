@@ -292,6 +292,9 @@ class RunConfig:
     resume: bool = False
     torch_threads: int = 1
     run_name: Optional[str] = None
+    # option (not the paper's, which ran its seeds apart): the seeds of GA runs evolved in lockstep in this process,
+    # each in its own directory; null: one run of ``seed`` (spn_torchrl.training.lockstep)
+    lockstep: Optional[list[int]] = None
 
     def __post_init__(self) -> None:
         if any(value is MISSING or value == MISSING for value in (self.algo, self.env, self.logger, self.evaluator)):
@@ -317,6 +320,8 @@ class RunConfig:
                 f"local for algo={self.algo.name} (Ray actors evaluate GA populations; PPO trains one policy here)",
             )
             _int_in("evaluator.num_actors", self.evaluator.num_actors, 1, self.algo.population)
+        if self.lockstep is not None:
+            self._check_lockstep()
         if self.env.backend == "mujoco_warp":
             _check(
                 isinstance(self.evaluator, LocalEvaluatorConfig) and self.evaluator.processes in (None, 1),
@@ -324,6 +329,20 @@ class RunConfig:
                 self.evaluator.name,
                 "local with evaluator.processes 1 or null for env.backend=mujoco_warp (one device holds every world)",
             )
+
+    def _check_lockstep(self) -> None:
+        seeds = list(self.lockstep)
+        _check(bool(seeds), "lockstep", seeds, "null or a non-empty list of seeds")
+        for seed in seeds:
+            _int_in("lockstep seeds", seed, 0, MAX_SEED)
+        _check(len(set(seeds)) == len(seeds), "lockstep", seeds, "a list of distinct seeds")
+        _check(isinstance(self.algo, GAConfig), "lockstep", seeds, f"null for algo={self.algo.name} (GA runs only)")
+        _check(
+            isinstance(self.evaluator, LocalEvaluatorConfig),
+            "lockstep",
+            seeds,
+            "null for evaluator=ray (lockstep runs share this machine's evaluator)",
+        )
 
     @property
     def is_ga(self) -> bool:

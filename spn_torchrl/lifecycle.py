@@ -36,7 +36,7 @@ from spn_torchrl.records import (
 log = logging.getLogger("spn_torchrl")
 
 # fields that cannot change a run's results: a resume may change them (logged)
-SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
+SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator", "lockstep")
 UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
