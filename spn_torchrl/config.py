@@ -336,6 +336,7 @@ class RunConfig:
         for seed in seeds:
             _int_in("lockstep seeds", seed, 0, MAX_SEED)
         _check(len(set(seeds)) == len(seeds), "lockstep", seeds, "a list of distinct seeds")
+        _check(self.seed == 0, "seed", self.seed, "0 (its default) with lockstep, whose list gives the runs' seeds")
         _check(isinstance(self.algo, GAConfig), "lockstep", seeds, f"null for algo={self.algo.name} (GA runs only)")
         _check(
             isinstance(self.evaluator, LocalEvaluatorConfig),
@@ -349,8 +350,17 @@ class RunConfig:
         return isinstance(self.algo, GAConfig)
 
 
+def seeds_label(seed: Any, lockstep: Any) -> str:
+    """The seed part of a job's Hydra directory (``${seeds:${seed},${lockstep}}`` in conf/config.yaml): ``seed``,
+    or with ``lockstep`` its seeds joined by '-' (``0-1-2``), so that the jobs of a multirun over lockstep
+    batches (``-m lockstep=[0,1],[2,3]``) get their own directories."""
+    return str(seed) if lockstep is None else "-".join(str(s) for s in lockstep)
+
+
 def register_configs() -> None:
-    """Register the schemas that the YAML files in conf/ extend."""
+    """Register the schemas that the YAML files in conf/ extend, and the ``seeds`` resolver their Hydra
+    directories use."""
+    OmegaConf.register_new_resolver("seeds", seeds_label, replace=True)
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
     cs.store(group="algo", name="ga_schema", node=GAConfig)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -44,10 +45,11 @@ def test_lockstep_seeds_are_checked_before_anything_runs(make_config):
         "lockstep=[]": "lockstep must be null or a non-empty list of seeds",
         "lockstep=[1,1]": "lockstep must be a list of distinct seeds",
         "lockstep=[-1]": "lockstep seeds must be an integer in",
+        "seed=3 lockstep=[1,2]": r"seed must be 0 \(its default\) with lockstep",
     }
     for override, sentence in bad.items():
         with pytest.raises(ConfigError, match=sentence):
-            make_config(override)
+            make_config(*override.split())
     with pytest.raises(ConfigError, match="lockstep must be null for algo=dpn_ppo"):
         make_config("algo=dpn_ppo", "lockstep=[0,1]")
 
@@ -66,6 +68,9 @@ def test_cartpole_runs_in_lockstep_write_their_separate_runs_rows(tmp_path, sepa
         assert {k: v for k, v in mine["config"].items() if k not in drop} == {
             k: v for k, v in theirs["config"].items() if k not in drop
         }
+        # COMMIT as a separate run writes it (written from a clean checkout, as in CI; absent from a dirty one)
+        commits = [(d / "COMMIT").read_text() if (d / "COMMIT").exists() else None for d in (run_dir, alone)]
+        assert commits[0] == commits[1]
         saved = yaml.safe_load((run_dir / ".hydra" / "config.yaml").read_text())
         assert saved["seed"] == seed and saved["lockstep"] is None  # found by the analysis tools as any run
 
@@ -133,3 +138,19 @@ def test_each_lockstep_run_has_its_own_wandb_run(tmp_path):
         ids.add(checkpoint.load(run_dir)["wandb_id"])
         assert offline.name.endswith(checkpoint.load(run_dir)["wandb_id"])
     assert len(ids) == 2
+
+
+@pytest.mark.slow
+def test_a_multirun_over_lockstep_batches_gives_each_batch_its_own_directory(tmp_path, separate):
+    env = {**os.environ, "WANDB_MODE": "offline", "WANDB_SILENT": "true"}
+    command = [sys.executable, str(ROOT / "train.py"), "-m", f"hydra.sweep.dir={tmp_path}", *CARTPOLE]
+    command += ["algo.generations=1", "lockstep=[1,2],[3]"]
+    proc = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_dir()) == [
+        "cartpole__conn_ga__1-2",
+        "cartpole__conn_ga__3",
+    ]
+    for seed in (1, 2):
+        assert rows(member(tmp_path / "cartpole__conn_ga__1-2", seed)) == rows(separate[seed])[:1]
+    assert len(rows(member(tmp_path / "cartpole__conn_ga__3", 3))) == 1
