@@ -41,6 +41,7 @@ def separate(tmp_path_factory) -> dict[int, Path]:
 
 def test_lockstep_seeds_are_checked_before_anything_runs(make_config):
     assert make_config("lockstep=[3,1]").lockstep == [3, 1]
+    assert make_config("algo=conn_ec", "normalize_observations=true", "lockstep=[0,1]").lockstep == [0, 1]
     bad = {
         "lockstep=[]": "lockstep must be null or a non-empty list of seeds",
         "lockstep=[1,1]": "lockstep must be a list of distinct seeds",
@@ -154,3 +155,33 @@ def test_a_multirun_over_lockstep_batches_gives_each_batch_its_own_directory(tmp
     for seed in (1, 2):
         assert rows(member(tmp_path / "cartpole__conn_ga__1-2", seed)) == rows(separate[seed])[:1]
     assert len(rows(member(tmp_path / "cartpole__conn_ga__3", 3))) == 1
+
+
+@pytest.mark.slow
+def test_ec_runs_with_normalised_observations_in_lockstep_write_their_separate_runs_rows_and_statistics(tmp_path):
+    ec = ["env=cartpole", "algo=conn_ec", "algo.population=20", "algo.elite_episodes=2", "algo.generations=3"]
+    ec.append("normalize_observations=true")
+    run_train(tmp_path / "lockstep", *ec, "lockstep=[1,2]")
+    for seed in (1, 2):
+        run_train(tmp_path / str(seed), *ec, f"seed={seed}")
+        mine, theirs = tmp_path / "lockstep" / f"cartpole__conn_ec__{seed}", tmp_path / str(seed)
+        assert rows(mine) == rows(theirs) and len(rows(mine)) == 3
+        a, b = checkpoint.load(mine), checkpoint.load(theirs)
+        for key in ("p", "population", "elites", "elite_norms"):
+            assert a[key].equal(b[key]), key
+        assert a["adam"]["m"].equal(b["adam"]["m"]) and a["adam"]["v"].equal(b["adam"]["v"])
+        assert all(a["obs_stats"][k].equal(b["obs_stats"][k]) for k in ("mean", "summed_variance", "std"))
+
+
+@pytest.mark.slow
+def test_a_lockstep_run_whose_directory_is_locked_is_refused_before_anything_runs(tmp_path):
+    import fcntl
+
+    run_dir = member(tmp_path, 2)
+    run_dir.mkdir(parents=True)
+    with open(run_dir / ".lock", "w") as held:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        proc = run_train(tmp_path, *CARTPOLE, "algo.generations=1", "lockstep=[1,2]", check=False)
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert f"{run_dir} is in use by a live run" in proc.stderr.strip().splitlines()[-1]
+    assert not (run_dir / "checkpoint.pt").exists() and not (member(tmp_path, 1) / "checkpoint.pt").exists()

@@ -25,6 +25,7 @@ from spn_torchrl.config import LocalEvaluatorConfig
 from spn_torchrl.errors import ConfigError, EvaluatorError, SpnError
 from spn_torchrl.evaluation.rollout import Episodes
 from spn_torchrl.evaluation.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
 CALL_TIMEOUT_S = LocalEvaluatorConfig.call_timeout_s  # a genome set's evaluation past this is a stall
@@ -105,11 +106,16 @@ class ProcessEvaluator:
             self.close()
             raise
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, runs: np.ndarray | None = None) -> Episodes:
+    def __call__(
+        self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None, runs: np.ndarray | None = None
+    ) -> Episodes:
         requests = shard_requests(
-            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", runs
+            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", norm, runs
         )
-        asked = [(index, ("evaluate", (shard, seeds_, runs_))) for index, _, _, shard, seeds_, runs_ in requests]
+        asked = [
+            (index, ("evaluate", (shard, shard_seeds, part, shard_runs)))
+            for index, _, _, shard, shard_seeds, part, shard_runs in requests
+        ]
         return merge(self._ask(asked, "evaluate"))
 
     def gather(self, query: str) -> list:

@@ -18,9 +18,12 @@ import torch
 from spn_torchrl.envs import make_batched_env
 from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator
 from spn_torchrl.seeds import slot_seeds
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
-Results = tuple[np.ndarray, np.ndarray, np.ndarray]  # returns, steps, spikes of one shard
+# returns, steps, spikes of one shard (and, with normalised observations, its slots' observation moments)
+Results = tuple[np.ndarray, ...]
+ShardNorm = tuple[np.ndarray, np.ndarray] | None  # one shard's (mean, inv_std) [b, n] float32, or None
 
 
 def shard_bounds(count: int, parts: int) -> list[tuple[int, int]]:
@@ -52,17 +55,32 @@ def shard_requests(
     parts: int,
     capacity: int,
     holders: str,
+    norm: Norm | None = None,
     runs: np.ndarray | None = None,
-) -> list[tuple[int, int, int, np.ndarray, np.ndarray, np.ndarray | None]]:
+) -> list[tuple[int, int, int, np.ndarray, np.ndarray, ShardNorm, np.ndarray | None]]:
     """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, their env
-    seeds, their runs or None) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
+    seeds, their observation normalisation or None, their runs or None) for every non-empty shard; ValueError
+    naming ``holders`` past ``capacity``."""
     count = genomes.shape[0]
     if not 0 < count <= capacity:
         raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
     payload, seeds = encode_genomes(spn, genomes), slot_seeds(seeds, count)
+    rows = None if norm is None else [t.to(torch.float32).expand(count, -1).contiguous().numpy() for t in norm]
+
+    def part(start: int, stop: int) -> ShardNorm:
+        return None if rows is None else (rows[0][start:stop], rows[1][start:stop])
+
     bounds = enumerate(shard_bounds(count, parts))
     return [
-        (i, start, stop, payload[start:stop], seeds[start:stop], None if runs is None else runs[start:stop])
+        (
+            i,
+            start,
+            stop,
+            payload[start:stop],
+            seeds[start:stop],
+            part(start, stop),
+            None if runs is None else runs[start:stop],
+        )
         for i, (start, stop) in bounds
         if stop > start
     ]
@@ -81,14 +99,13 @@ def without_genomes(spn: PopulationSPN) -> PopulationSPN:
     """What a worker receives once: the SPN with its fixed weights only (the effective weights of an
     earlier genome set would only add bytes)."""
     bare = copy.copy(spn)
-    bare.w1_eff = bare.w2_eff = None
+    bare.w1_eff = bare.w2_eff = bare.obs_norm = None
     return bare
 
 
 def merge(parts: list[Results]) -> Episodes:
     """The episodes of the whole genome set from its shards' results, in shard order."""
-    returns, steps, spikes = (torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts))
-    return Episodes(returns, steps, spikes)
+    return Episodes(*(torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts)))
 
 
 class ShardWorker:
@@ -105,9 +122,13 @@ class ShardWorker:
     def ready(self) -> int:
         return self.evaluator.size
 
-    def evaluate(self, payload: np.ndarray, seeds: np.ndarray, runs: np.ndarray | None = None) -> Results:
-        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seeds, runs)
-        return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+    def evaluate(
+        self, payload: np.ndarray, seeds: np.ndarray, norm: ShardNorm = None, runs: np.ndarray | None = None
+    ) -> Results:
+        genomes = decode_genomes(payload, self.genome_kind, self.genome_size)
+        episodes = self.evaluator(genomes, seeds, None if norm is None else tuple(map(torch.from_numpy, norm)), runs)
+        results = episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+        return results if norm is None else results + tuple(t.numpy() for t in episodes.moments)
 
     def peak_memory_mb(self) -> float:
         """This process's peak resident memory."""

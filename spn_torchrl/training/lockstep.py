@@ -1,14 +1,16 @@
-"""GA runs in lockstep: R runs of one task and method, differing in seed, evolved in one process, every rollout
-one batch of R x (N + k x E) slots (``lockstep=[seeds]``).
+"""GA or EC runs in lockstep: R runs of one task and method, differing in seed, evolved in one process, every
+rollout one batch of R x (N + k x E) slots (``lockstep=[seeds]``).
 
-Each run is a whole run of its own: its directory ``{lockstep dir}/{env}__{algo}__{seed}`` holds its resolved
-config (``.hydra/config.yaml``), ``progress.csv``, checkpoint, ``COMMIT`` and logger (its own W&B run), under
-the run contract of :mod:`spn_torchrl.lifecycle`, and its config is the config of a separate run of its seed
-(``lockstep`` null). Each run keeps its fixed weights and GA generator; the SPN holds every run's fixed weights
-and each genome uses its run's (:class:`~spn_torchrl.snn.policies.PopulationSPN`); each episode's env seed is
-its run's (:mod:`spn_torchrl.seeds`). So on the CPU backends a run's rows are those of the separate run, bit for
-bit, all but wall time and speed, and a run may be resumed, extended or stopped in lockstep or alone. Runs that
-stand at different generations (one extended alone) share rollouts until each reaches its budget.
+Each run is a whole run of its own: its directory ``{lockstep dir}/{env}__{algo}__{seed}`` holds its lock, its
+record (``.hydra/``), ``progress.csv``, checkpoint, ``COMMIT`` and logger (its own W&B run), under the run
+contract of :mod:`spn_torchrl.lifecycle`, and its config is the config of a separate run of its seed
+(``lockstep`` null). Each run keeps its fixed weights, generator, method state (EC's p and Adam state) and
+observation statistics; the SPN holds every run's fixed weights and each genome uses its run's
+(:class:`~spn_torchrl.snn.policies.PopulationSPN`); each slot gets its run's normalisation and each episode its
+run's env seed (:mod:`spn_torchrl.seeds`). So on the CPU backends a run's rows are those of the separate run, bit
+for bit, all but wall time and speed, and a run may be resumed, extended or stopped in lockstep or alone. Runs
+that stand at different generations (one extended alone) share rollouts until each reaches its budget. A
+non-finite value in one run stops the batch, every run at its last checkpoint.
 """
 
 from __future__ import annotations
@@ -22,11 +24,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from spn_torchrl.config import RunConfig, config_yaml
+from spn_torchrl.config import RunConfig
 from spn_torchrl.envs import task_spec
 from spn_torchrl.evaluation import local_processes, machine_evaluator
-from spn_torchrl.lifecycle import deferred_signals, open_run
-from spn_torchrl.records import run_file_error, sweep_name, write_atomic
+from spn_torchrl.lifecycle import deferred_signals, open_run, run_lock
+from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.snn.policies import spn_from_config
 from spn_torchrl.training.evolve import Generations, run_meta, start_state
 
@@ -47,7 +49,7 @@ def run_dir_name(cfg: RunConfig) -> str:
 
 
 def evolve_lockstep(cfg: RunConfig, out: Path) -> dict[int, dict[str, Any]]:
-    """Run (or resume) the GA runs of ``cfg.lockstep`` in lockstep under ``out``; returns each seed's last row."""
+    """Run (or resume) the GA or EC runs of ``cfg.lockstep`` in lockstep under ``out``; returns each seed's last row."""
     spec = task_spec(cfg.env.id)
     configs = run_configs(cfg, out.name)
     with contextlib.ExitStack() as stack:
@@ -60,8 +62,8 @@ def evolve_lockstep(cfg: RunConfig, out: Path) -> dict[int, dict[str, Any]]:
                 run_dir.mkdir(parents=True, exist_ok=True)
             except OSError as err:
                 raise run_file_error(run_dir, err) from None
-            run = stack.enter_context(open_run(run_cfg, run_dir, name, "ga", run_meta(run_cfg, spec)))
-            write_atomic(run_dir / ".hydra" / "config.yaml", config_yaml(run_cfg))  # the run's own, as Hydra's
+            stack.enter_context(run_lock(run_dir))
+            run = stack.enter_context(open_run(run_cfg, run_dir, name, run_cfg.algo.kind, run_meta(run_cfg, spec)))
             state = start_state(run_cfg, spec, run)
             if state is None:
                 last[run_cfg.seed] = run.rows[-1] if run.rows else {}
@@ -98,7 +100,9 @@ def _lockstep(cfg: RunConfig, spec: Any, loops: list[Generations]) -> None:
             genomes = torch.cat([request[0] for _, request in asked])
             seeds = np.concatenate([request[1] for _, request in asked])
             runs = np.concatenate([np.full(len(request[1]), loops.index(loop)) for loop, request in asked])
-            result = evaluator(genomes, seeds, runs)
+            norms = [request[2] for _, request in asked]  # all None, or all set: the runs share one config
+            norm = None if norms[0] is None else tuple(torch.cat(parts) for parts in zip(*norms))
+            result = evaluator(genomes, seeds, norm, runs=runs)
             start = 0
             with deferred_signals():  # a signal stops the runs once each has saved this rollout
                 for loop, request in asked:
