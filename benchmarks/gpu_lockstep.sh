@@ -18,8 +18,9 @@ DEVICE=${DEVICE:-cuda}  # DEVICE=cpu (Warp's CPU backend) with tiny RUNS, POPULA
 RUNS=${RUNS:-1,7,10,66}
 POPULATION=${POPULATION:-200}
 EPISODE_STEPS=${EPISODE_STEPS:-100}
-TASK_S=${TASK_S:-140}
+TASK_S=${TASK_S:-110}  # 3 tasks x 110 s + at most 90 s of install: under 8 minutes
 TABLES=${OUT:-/tmp}/lockstep.md
+mkdir -p "$(dirname "$TABLES")"
 export PYTHONUNBUFFERED=1 PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH}
 start=$(date +%s)
 elapsed() { echo "[$(($(date +%s) - start)) s]"; }
@@ -28,7 +29,7 @@ if compgen -G ".whl/part*/wheels.tar.*" >/dev/null; then
     echo "== install the carried wheels $(elapsed)"
     wheels=$(mktemp -d) site=$(mktemp -d)
     cat .whl/part*/wheels.tar.* | tar -xf - -C "$wheels"
-    timeout 120 "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
+    timeout 90 "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
         --target "$site" "$wheels"/*.whl || echo "install FAILED or timed out"
     export PYTHONPATH=$site:$PYTHONPATH
 fi

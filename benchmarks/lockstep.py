@@ -71,10 +71,10 @@ def measure(args: argparse.Namespace, runs: int) -> dict:
     env = make_batched_env(args.env, slots, backend=args.backend, threads=args.threads, device=device)
     evaluator = PopulationEvaluator(env, spn, args.episode_steps)
     try:
-        evaluator(genomes, seeds, run_index)  # warm: kernels, caches
+        evaluator(genomes, seeds, runs=run_index)  # warm: kernels, caches
         before = getattr(env, "physics_seconds", None)
         t0 = time.perf_counter()
-        result = evaluator(genomes, seeds, run_index)
+        result = evaluator(genomes, seeds, runs=run_index)
         seconds = time.perf_counter() - t0
         rate = result.total_steps / seconds
         if isinstance(env, MujocoWarpEnv):
@@ -102,7 +102,7 @@ def profile(evaluator: PopulationEvaluator, genomes, seeds, run_index, steps: in
     cut, evaluator.max_episode_steps = evaluator.max_episode_steps, steps
     try:
         with torch_profile(activities=activities) as prof:
-            evaluator(genomes, seeds, run_index)
+            evaluator(genomes, seeds, runs=run_index)
             synchronize(evaluator.env)
     finally:
         evaluator.max_episode_steps = cut
