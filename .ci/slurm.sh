@@ -39,6 +39,7 @@ install)
 start)
     dir=$(realpath -m "${2:?slurm.sh start DIR}")
     mkdir -p "$dir"/{log,state,spool,mysql}
+    chmod 755 "$dir" # mariadbd runs as mysql and must reach DIR/mysql (mktemp -d makes DIR 700)
     : >"$dir/pids"
     # munged: its socket directory is fixed at /run/munge; the package created /etc/munge/munge.key
     mkdir -p /run/munge
