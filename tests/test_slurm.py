@@ -56,9 +56,9 @@ def sweep(sweep_dir: Path, *overrides: str, background: bool = False):
 
 
 def states(job_ids: list[str]) -> dict[str, str]:
-    """Each job's state as Slurm's accounting (sacct) records it."""
+    """Each job's state as Slurm's accounting (sacct) records it, without the "by <uid>" of CANCELLED."""
     out = slurm("sacct", "-n", "-X", "-P", "-o", "JobID,State", "-j", ",".join(job_ids))
-    return dict(line.split("|")[:2] for line in out.splitlines() if line)
+    return {job: state.split()[0] for job, state, *_ in (line.split("|") for line in out.splitlines() if line)}
 
 
 def submitted(output: str) -> list[str]:
