@@ -67,7 +67,7 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     run extended to more generations writes the rows of an uninterrupted longer run.
     """
     spec = task_spec(cfg.env.id)
-    with open_run(cfg, run_dir, run_name, "ga", run_meta(cfg, spec)) as run:
+    with open_run(cfg, run_dir, run_name, "ga", run_meta(cfg, spec), cfg.algo.generations) as run:
         state = run.state or initial_state(cfg.algo, spec, cfg.seed)
         done = state["generation"]
         if cfg.algo.generations < done:
