@@ -15,7 +15,8 @@ CHECKPOINT_NAME = "checkpoint.pt"
 # /3: episode seeds by role and index, the run's config as a dict and its rows in the state (/2: the pending
 # re-evaluation is part of the state); tools still read /2 elites
 GA_FORMAT = "spn_torchrl.ga/3"
-GA_FORMATS_READABLE = ("spn_torchrl.ga/2", GA_FORMAT)
+EC_FORMAT = "spn_torchrl.ec/1"  # a GA/3 state with EC's p and Adam state ("p", "adam") in it
+GA_FORMATS_READABLE = ("spn_torchrl.ga/2", GA_FORMAT, EC_FORMAT)  # whose elites the tools read
 PPO_FORMAT = "spn_torchrl.ppo/2"  # /2: the run's config as a dict and its rows in the state
 
 

@@ -25,6 +25,14 @@ class RunFileError(SpnError, OSError):
     """A file of a run could not be written: the message names the path and what was expected."""
 
 
+class RunLockedError(SpnError):
+    """The run directory is held by another live run."""
+
+
+class NonFiniteError(SpnError):
+    """A return, loss or genome became NaN or infinite: the run stops after its last finite checkpoint."""
+
+
 class RunInterrupted(BaseException):
     """SIGINT or SIGTERM stopped a run; its checkpoint is consistent and it can be resumed. A BaseException, as
     KeyboardInterrupt is, so that no library's ``except Exception`` swallows it."""

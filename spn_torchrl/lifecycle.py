@@ -10,7 +10,10 @@ every row written so far, so progress.csv is restored from it on resume.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import logging
+import math
+import os
 import signal
 import sys
 from collections.abc import Iterator, Mapping
@@ -18,16 +21,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import torch
 from omegaconf import OmegaConf
 
 from spn_torchrl import checkpoint
-from spn_torchrl.config import RunConfig, config_dict
-from spn_torchrl.errors import CheckpointError, ConfigError, RunInterrupted
+from spn_torchrl.config import RunConfig, config_dict, config_yaml
+from spn_torchrl.errors import CheckpointError, ConfigError, NonFiniteError, RunInterrupted, RunLockedError
 from spn_torchrl.records import (
     Progress,
     close_logger,
     logger_run_id,
     make_logger,
+    run_file_error,
     source_commit,
     trim_csv_logs,
     write_atomic,
@@ -39,12 +44,16 @@ log = logging.getLogger("spn_torchrl")
 # fields that cannot change a run's results: a resume may change them (logged)
 SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
 UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
+# fields added after runs were written, with the value every earlier run had: a saved config without one reads so
+ADDED = {"normalize_observations": False}
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
-BUDGET = {"ga": "algo.generations", "ppo": "algo.total_env_steps"}
-UNIT = {"ga": "gen", "ppo": "iter"}  # what the terminal's progress bar counts
+BUDGET = {"ga": "algo.generations", "ec": "algo.generations", "ppo": "algo.total_env_steps"}
+UNIT = {"ga": "gen", "ec": "gen", "ppo": "iter"}  # what the terminal's progress bar counts
 PROGRESS_NAME = "progress.csv"
 COMMIT_NAME = "COMMIT"
+LOCK_NAME = ".lock"
+RECORD_DIR = ".hydra"  # the run's config record, where Hydra would write it (conf/config.yaml turns Hydra's off)
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -59,20 +68,23 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def _safe(path: str) -> bool:
-    return any(path == s or path.startswith(f"{s}.") for s in SAFE)
+def affects_results(path: str, kind: str) -> bool:
+    """Whether a config field (a dotted path) can change a run's results: not :data:`SAFE`, :data:`UNCOMPARED` or
+    the budget of ``kind``."""
+    safe = any(path == s or path.startswith(f"{s}.") for s in SAFE)
+    return not (safe or path in UNCOMPARED or path == BUDGET.get(kind))
 
 
 def config_changes(saved: Mapping[str, Any], new: Mapping[str, Any], kind: str) -> tuple[list[str], list[str]]:
     """The differences between a run's saved config and a resume's: (refused, allowed), as ``field old -> new``."""
-    old_flat, new_flat = flatten(saved), flatten(new)
+    old_flat, new_flat = {**ADDED, **flatten(saved)}, flatten(new)
     refused, allowed = [], []
     for path in sorted(set(old_flat) | set(new_flat)):
         old, now = old_flat.get(path, "<absent>"), new_flat.get(path, "<absent>")
         if old == now or path in UNCOMPARED:
             continue
         change = f"{path} {old!r} -> {now!r}"
-        (allowed if _safe(path) or path == BUDGET[kind] else refused).append(change)
+        (refused if affects_results(path, kind) else allowed).append(change)
     return refused, allowed
 
 
@@ -91,6 +103,7 @@ class Run:
     wandb_id: str | None = None
     progress: Progress | None = None
     show: Show = lambda step, row: None  # the terminal's progress bar (a no-op off a terminal)
+    saved: str | None = None  # the last checkpoint written or resumed: "generation 3", "iteration 2"
 
     def record(self, row: Mapping[str, Any], step: int, prefix: Mapping[str, str] | None = None) -> None:
         """Add a row, log it (metrics under ``train/``, or the prefix a column names) and show it on the progress
@@ -120,6 +133,33 @@ class Run:
             )
             if self.rows:
                 self.progress.write(self.rows)
+            self.saved = _step_name(state)
+
+    def require_finite(self, what: str, values: Any, at: str) -> None:
+        """Stop the run with :class:`NonFiniteError` (one sentence naming ``what``, ``at`` and the last finite
+        checkpoint) where ``values`` (a tensor, a number, or several) hold a NaN or an infinity."""
+        if _finite(values):
+            return
+        kept = (
+            f"{self.dir} holds its last finite checkpoint ({self.saved})" if self.saved else "no checkpoint was written"
+        )
+        raise NonFiniteError(f"{what} became NaN or infinite in {at}: the run stopped there; {kept}")
+
+
+def _finite(values: Any) -> bool:
+    if isinstance(values, (list, tuple)):
+        return all(_finite(v) for v in values)
+    if isinstance(values, torch.Tensor):
+        return bool(torch.isfinite(values).all())
+    return math.isfinite(float(values))
+
+
+def _step_name(state: Mapping[str, Any]) -> str | None:
+    """``generation 3`` or ``iteration 2``: what a checkpoint's state holds."""
+    for key in ("generation", "iteration"):
+        if key in state:
+            return f"{key} {state[key]}"
+    return None
 
 
 def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]) -> dict[str, Any] | None:
@@ -140,27 +180,80 @@ def _resume_state(cfg: RunConfig, run_dir: Path, kind: str, meta: dict[str, Any]
     state = checkpoint.load(ckpt, expected={"format": meta["format"]})
     if state["meta"] != meta:
         changed = [f"{k} {state['meta'].get(k)!r} -> {v!r}" for k, v in meta.items() if state["meta"].get(k) != v]
-        _restore_hydra_config(run_dir, state["config"])
         raise CheckpointError(
             f"{ckpt} belongs to another task or network ({', '.join(changed)}): use a new run directory"
         )
     refused, allowed = config_changes(state["config"], config_dict(cfg), kind)
     if refused:
-        _restore_hydra_config(run_dir, state["config"])
         raise ConfigError(
             f"resume=true with a config that would change the results of {run_dir}: {'; '.join(refused)}; "
             "resume with the run's values or use a new run directory"
         )
     for change in allowed:
         log.info("resume: %s (does not change results)", change)
+    _check_budget(cfg, state, run_dir, kind)
     return state
 
 
-def _restore_hydra_config(run_dir: Path, config: Mapping[str, Any]) -> None:
-    """Hydra rewrote .hydra/config.yaml with the refused values before the run started: put the run's back."""
-    hydra_config = run_dir / ".hydra" / "config.yaml"
-    if hydra_config.exists():
-        write_atomic(hydra_config, OmegaConf.to_yaml(OmegaConf.create(dict(config))))
+def _check_budget(cfg: RunConfig, state: Mapping[str, Any], run_dir: Path, kind: str) -> None:
+    """ConfigError for a budget below what the run in ``run_dir`` has done (a budget may only grow)."""
+    if kind != "ppo":
+        asked, done, unit = cfg.algo.generations, state["generation"], "generations"
+    else:
+        asked, done, unit = cfg.algo.total_env_steps, state["iteration"] * cfg.algo.frames_per_batch, "env steps"
+    if asked < done:
+        raise ConfigError(f"{BUDGET[kind]}={asked} is below the {done} {unit} {run_dir} has done")
+
+
+def record_config(run_dir: Path, cfg: RunConfig) -> None:
+    """``.hydra/config.yaml`` (the run's resolved config) and, inside a Hydra app, ``overrides.yaml`` and
+    ``hydra.yaml``: what Hydra writes before the app starts, written here only once the run is accepted, so that a
+    refused run leaves the directory's record as it was."""
+    record = run_dir / RECORD_DIR
+    write_atomic(record / "config.yaml", config_yaml(cfg))
+    hydra = _hydra_config()
+    if hydra is not None:
+        write_atomic(record / "overrides.yaml", OmegaConf.to_yaml(hydra.overrides.task))
+        write_atomic(record / "hydra.yaml", OmegaConf.to_yaml(OmegaConf.create({"hydra": hydra})))
+
+
+def _hydra_config() -> Any:
+    """Hydra's config of this job, None outside a Hydra app."""
+    from hydra.core.hydra_config import HydraConfig
+
+    return HydraConfig.get() if HydraConfig.initialized() else None
+
+
+@contextlib.contextmanager
+def run_lock(run_dir: Path) -> Iterator[None]:
+    """Hold ``run_dir/.lock`` (an exclusive ``flock``) while the body runs: a second run in the directory is refused
+    with :class:`RunLockedError`. The kernel releases the lock when the process ends, however it ends, so a killed
+    run leaves no stuck lock; the file itself stays (removing it would let two runs lock two files)."""
+    path = run_dir / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+    except PermissionError:
+        try:  # an existing lock file in a directory the user made read-only: a read-only descriptor locks too
+            fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        except OSError as err:
+            raise run_file_error(path, err) from None
+    except OSError as err:
+        raise run_file_error(path, err) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip()
+            raise RunLockedError(
+                f"{run_dir} is in use by a live run{f' (process {holder})' if holder.isdigit() else ''}: "
+                "wait for it to end, or use a new run directory"
+            ) from None
+        with contextlib.suppress(OSError):  # the holder's pid, for the refusal above; the lock works without it
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager
@@ -169,10 +262,12 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
     finished on the way out (a W&B run marked failed with the exit code when the body raised or a signal stopped
     it), and the run's config and rows on disk are the checkpoint's. On a terminal a progress bar counts the rows."""
     state = _resume_state(cfg, run_dir, kind, meta)
+    record_config(run_dir, cfg)
     record_commit(run_dir, resumed=state is not None, commit=source_commit())
     run = Run(run_dir, cfg, name, kind, meta, state)
     if state is not None:
         run.name, run.wandb_id, run.rows = state["run_name"], state["wandb_id"], list(state["rows"])
+        run.saved = _step_name(state)
     run.progress = Progress(run_dir / PROGRESS_NAME)
     if run.rows:
         run.progress.write(run.rows)  # progress.csv is the checkpoint's rows, even if it was lost or cut
@@ -271,9 +366,7 @@ def resume_hint(run_dir: Path) -> str:
     """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
     overrides: list[str] = []
     with contextlib.suppress(Exception):
-        from hydra.core.hydra_config import HydraConfig
-
-        overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
+        overrides = [o for o in _hydra_config().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
     return " ".join(
         ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}", "resume=true"]
     )

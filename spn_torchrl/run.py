@@ -10,11 +10,11 @@ from typing import Any
 import torch
 from omegaconf import DictConfig
 
-from spn_torchrl.config import GAConfig, RunConfig, to_run_config
+from spn_torchrl.config import EVOLUTION, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
 from spn_torchrl.envs.mujoco_warp import torch_device
 from spn_torchrl.errors import RunInterrupted, require
-from spn_torchrl.lifecycle import resume_hint, signals_interrupt
+from spn_torchrl.lifecycle import resume_hint, run_lock, signals_interrupt
 from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.training.evolve import evolve
 from spn_torchrl.training.ppo import train_ppo
@@ -63,9 +63,9 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
     except OSError as err:
         raise run_file_error(out, err) from None
     torch.set_num_threads(typed.torch_threads)
-    train = evolve if isinstance(typed.algo, GAConfig) else train_ppo
+    train = evolve if isinstance(typed.algo, EVOLUTION) else train_ppo
     try:
-        with signals_interrupt():
+        with signals_interrupt(), run_lock(out):
             return train(typed, out, run_name(typed))
     except RunInterrupted as err:
         err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -50,6 +52,20 @@ def run_train(run_dir: Path, *overrides: str, check: bool = True) -> subprocess.
     if check and proc.returncode != 0:
         pytest.fail(f"train.py failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     return proc
+
+
+def sigterm_after_first_checkpoint(run_dir: Path, *overrides: str) -> tuple[int, bytes]:
+    """Start train.py into ``run_dir``, send it SIGTERM once its first checkpoint exists: its return code and
+    stderr."""
+    proc = subprocess.Popen(
+        train_command(run_dir, *overrides), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    deadline = time.time() + 120
+    while not (run_dir / "checkpoint.pt").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    return proc.returncode, err
 
 
 @pytest.fixture(scope="session")

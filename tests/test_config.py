@@ -6,7 +6,7 @@ import pytest
 from conftest import CONF, compose_config
 from omegaconf import OmegaConf
 
-from spn_torchrl.config import GAConfig, LocalEvaluatorConfig, PPOConfig, RunConfig, SNNConfig, from_saved
+from spn_torchrl.config import ECConfig, GAConfig, LocalEvaluatorConfig, PPOConfig, RunConfig, SNNConfig, from_saved
 from spn_torchrl.envs import BACKENDS
 from spn_torchrl.errors import ConfigError
 from spn_torchrl.run import check
@@ -19,7 +19,8 @@ ENVS = sorted(p.stem for p in Path(CONF, "env").glob("*.yaml"))
 @pytest.mark.parametrize("env", ENVS)
 def test_every_algo_and_env_composes_to_typed_objects(make_config, algo, env):
     cfg = make_config(f"algo={algo}", f"env={env}")
-    assert isinstance(cfg, RunConfig) and isinstance(cfg.algo, GAConfig if algo.endswith("ga") else PPOConfig)
+    schema = {"ga": GAConfig, "ec": ECConfig, "ppo": PPOConfig}[algo.rsplit("_", 1)[1]]
+    assert isinstance(cfg, RunConfig) and isinstance(cfg.algo, schema)
     assert isinstance(cfg.algo.snn, SNNConfig) and isinstance(cfg.evaluator, LocalEvaluatorConfig)
     assert cfg.algo.name == algo and cfg.env.name == env
     check(cfg)
@@ -46,7 +47,7 @@ def test_defaults_are_the_papers_and_written_once(make_config):
 
 
 def test_yaml_files_list_only_what_differs_from_the_schema():
-    schemas = {"ga_schema": GAConfig(), "ppo_schema": PPOConfig()}
+    schemas = {"ga_schema": GAConfig(), "ec_schema": ECConfig(), "ppo_schema": PPOConfig()}
     for path in Path(CONF, "algo").glob("*.yaml"):
         node = OmegaConf.load(path)
         schema = schemas[node.defaults[0]]
@@ -111,6 +112,26 @@ RULES = [
     (
         ["env=halfcheetah", "env.backend=mujoco_warp", "evaluator.processes=2"],
         "evaluator must be local with evaluator.processes 1 or null for env.backend=mujoco_warp",
+    ),
+    # algo=conn_ec (issue 46)
+    (["algo=conn_ec", "algo.lr=0"], "algo.lr must be a finite number in (0, inf), got 0"),
+    (["algo=conn_ec", "algo.eps=0.5"], "algo.eps must be a finite number in (0, 0.5), got 0.5"),
+    (["algo=conn_ec", "algo.p_init=1"], "algo.p_init must be a finite number in [0.001, 0.999], got 1"),
+    (["algo=conn_ec", "algo.adam_b1=1"], "algo.adam_b1 must be a finite number in [0, 1), got 1"),
+    (["algo=conn_ec", "algo.adam_b2=nan"], "algo.adam_b2 must be a finite number in [0, 1)"),
+    (["algo=conn_ec", "algo.adam_eps=0"], "algo.adam_eps must be a finite number in (0, inf), got 0"),
+    (["algo=conn_ec", "algo.population=1"], "algo.population must be an integer in [2, 100000], got 1"),
+    (["algo=conn_ec", "algo.generations=0"], "algo.generations must be an integer in [1, 100000], got 0"),
+    (["algo=conn_ec", "algo.elite_episodes=0"], "algo.elite_episodes must be an integer in [1, 200], got 0"),
+    (["algo=conn_ec", "+algo.sigma=0.1"], "algo.sigma is not a field of algo (ECConfig)"),
+    (
+        ["algo=conn_ec", "evaluator=ray", "evaluator.num_actors=201"],
+        "evaluator.num_actors must be an integer in [1, 200]",
+    ),
+    # normalize_observations (issue 46)
+    (
+        ["normalize_observations=true", "env=swimmer", "env.backend=mujoco_warp"],
+        "normalize_observations must be false for env.backend=mujoco_warp",
     ),
 ]
 

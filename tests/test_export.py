@@ -37,7 +37,7 @@ def topological(graph) -> list[str]:
 
 
 def simulate(graph, observations: np.ndarray) -> np.ndarray:
-    """Run a NIR graph (Input, Linear, LIF, LI, Output) on a batch of observations [B, n], each from zero state for
+    """Run a NIR graph (Input, Linear, Affine, Scale, LIF, LI, Output) on a batch of observations [B, n], each from zero state for
     ``time_steps`` forward-Euler steps of ``dt``, reading out the max over time of the output (graph metadata)."""
     dt, steps = float(graph.metadata["dt"]), int(graph.metadata["time_steps"])
     assert graph.metadata["readout"] == "max_over_time"
@@ -59,6 +59,10 @@ def simulate(graph, observations: np.ndarray) -> np.ndarray:
                 values[name] = x
             elif isinstance(node, nir.Linear):
                 values[name] = signal @ node.weight.astype(np.float32).T
+            elif isinstance(node, nir.Affine):
+                values[name] = signal @ node.weight.astype(np.float32).T + node.bias.astype(np.float32)
+            elif isinstance(node, nir.Scale):
+                values[name] = signal * node.scale.astype(np.float32)
             elif isinstance(node, (nir.LIF, nir.LI)):
                 decay = (1.0 - dt / node.tau).astype(np.float32)  # forward Euler, coefficients first
                 gain = (dt / node.tau * node.r).astype(np.float32)

@@ -14,7 +14,7 @@ from spn_torchrl.analysis.collect import MAX_BYTES
 from spn_torchrl.analysis.energy import sig
 from spn_torchrl.analysis.reproduction import COMMAND, PAPER_R_SOURCE, build_reproduction, ppo_seeds
 from spn_torchrl.analysis.runs import find_runs
-from spn_torchrl.analysis.stats import one_value, sample_sd, verdict, welch
+from spn_torchrl.analysis.stats import one_value, p_text, sample_sd, verdict, welch
 
 ROOT = Path(__file__).resolve().parents[1]
 CONN_FINAL = [2700.0, 2800.0, 2900.0]
@@ -230,3 +230,63 @@ def test_the_committed_reproduction_is_what_its_committed_runs_give(tmp_path):
         assert all(p.stat().st_size <= MAX_BYTES for p in run.iterdir()), run
     assert (tmp_path / "README.md").read_text() == (committed / "README.md").read_text(), f"run: {COMMAND}"
     assert json.loads((tmp_path / "report.json").read_text()) == json.loads((committed / "report.json").read_text())
+
+
+def test_claims_and_rows_keep_seeds_0_to_9_and_more_seeds_get_an_all_seeds_row(tmp_path):
+    """HalfCheetah with Connections-GA seeds 0-19 and Weights-GA seeds 0-19: seeds 0-9 put Connections-GA ahead,
+    seeds 10-19 behind. The claims and the pooled rows are those of seeds 0-9; one more row per method pools all 20
+    and the beats claim quotes the 20-seed comparison without being judged on it."""
+    runs = tmp_path / "runs"
+    conn = [3000.0 + 10 * s for s in range(10)] + [1000.0 + 10 * s for s in range(10)]
+    weights = [2000.0 + 10 * s for s in range(20)]
+    for seed in range(20):
+        write_run(runs, "halfcheetah", "HalfCheetah-v5", "conn_ga", seed, curve(conn[seed]), layout="flat")
+        write_run(runs, "halfcheetah", "HalfCheetah-v5", "weights_ga", seed, curve(weights[seed]), layout="flat")
+    result = build_reproduction([runs], tmp_path / "out")
+    methods = result["tasks"]["halfcheetah"]["methods"]
+    assert methods["conn_ga"]["seeds"] == list(range(10)) == methods["weights_ga"]["seeds"]
+    assert methods["conn_ga"]["final_return_mean"] == pytest.approx(np.mean(conn[:10]))
+    every = result["all_seeds"]["halfcheetah"]
+    assert every["conn_ga"]["seeds"] == list(range(20)) == every["weights_ga"]["seeds"]
+    assert every["conn_ga"]["final_return_mean"] == pytest.approx(np.mean(conn))
+    assert every["conn_ga"]["final_return_std"] == pytest.approx(np.std(conn))
+    beats = claim(result, "Connections-GA beats Weights-GA on HalfCheetah")
+    assert beats["status"] == "confirmed"  # seeds 0-9: 3045 vs 2045; all 20 seeds would give 2045 vs 2095
+    assert beats["ours"].startswith("3045 vs 2045 at generations 100 / 100 (Welch: ")
+    expected = welch(np.mean(conn), np.std(conn, ddof=1), 20, np.mean(weights), np.std(weights, ddof=1), 20)
+    assert f"; all 20 / 20 seeds: 2045 vs 2095 (Welch: {p_text(expected.p)}), not the claim's basis" in beats["ours"]
+    assert "seed(s) of the paper's 10]" not in beats["ours"]
+    rows = result["comparisons"]["halfcheetah"]
+    assert [(r["algo"], r["seeds"], r.get("pool")) for r in rows] == [
+        ("conn_ga", 10, None),
+        ("conn_ga", 20, "all 20 seeds"),
+        ("weights_ga", 10, None),
+        ("weights_ga", 20, "all 20 seeds"),
+    ]
+    md = Path(result["markdown"]).read_text()
+    assert f"| Connections-GA: all 20 seeds | 20 | 100 | 2045 +- {np.std(conn):.0f} | 1000 - 3090 |" in md
+    assert f"| Weights-GA | 10 | 100 | 2045 +- {np.std(weights[:10]):.0f} | 2000 - 2090 |" in md
+    assert "Connections-GA, all 20 seeds: every finished seed pooled (0, 1, 2," in md
+    assert "16, 17, 18, 19); the claims and the other rows keep the paper's protocol, seeds 0-9." in md
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["all_seeds"]["halfcheetah"]["conn_ga"]["seeds"]
+
+
+def test_seeds_beyond_0_to_9_alone_make_no_paper_protocol_row(tmp_path):
+    """A method with seeds 10-11 only is not in the paper-protocol pools (its claims are not yet run), and its
+    all-seeds row says what it ran."""
+    runs = tmp_path / "runs"
+    for seed in (10, 11):
+        write_run(runs, "swimmer", "Swimmer-v5", "conn_ga", seed, curve(150.0 + seed, 10))
+    write_run(runs, "swimmer", "Swimmer-v5", "weights_ga", 0, curve(100.0, 10))
+    result = build_reproduction([runs], tmp_path / "out")
+    assert "conn_ga" not in result["tasks"]["swimmer"]["methods"]
+    assert result["all_seeds"]["swimmer"]["conn_ga"]["seeds"] == [10, 11]
+    assert claim(result, "Connections-GA reaches the PPO level R on Swimmer")["status"] == "not yet run"
+    md = Path(result["markdown"]).read_text()
+    assert (
+        "| Connections-GA: all 2 seeds | 2 | 10 (shortened, deliberate) |" in md
+        and "| Weights-GA | 1 | 10 (shortened" in md
+    )
+    write_run(runs, "cartpole", "CartPole-v1", "conn_ga", 12, curve(500.0, 10))
+    md = Path(build_reproduction([runs], tmp_path / "again")["markdown"]).read_text()
+    assert "Finished runs of tasks with no run of seeds 0-9, not reported: cartpole conn_ga seeds [12]." in md

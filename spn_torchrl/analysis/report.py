@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +28,7 @@ from spn_torchrl.analysis.runs import (
     longer_groups,
     pool_choice,
     pooled,
+    split_duplicates,
     split_finished,
 )
 from spn_torchrl.envs import task_spec
@@ -299,6 +300,14 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
             )
     for algo, entries in s.get("left_out", {}).items():
         out.append(f"- {algo}: no run reached its budget, none pooled: {_progress_list(entries)}.")
+    for algo, entries in s.get("duplicates", {}).items():
+        repeated = "; ".join(f"seed {e['seed']} ({e['path']})" for e in entries)
+        out.append(f"- {algo}: a seed run more than once counts once (its first run by path); left out: {repeated}.")
+    mixed = [algo for algo in s["methods"] if " (" in algo]
+    if mixed:
+        out.append(
+            f"- runs of one method with different results-affecting configs are listed apart: {', '.join(mixed)}."
+        )
     return out + [""] if out else []
 
 
@@ -434,9 +443,11 @@ def summarize(
     strict: bool = False,
     fallback_levels: dict[str, tuple[float, str]] | None = None,
     published: dict[str, dict[str, tuple[int, float, float]]] | None = None,
+    seeds: Collection[int] | None = None,
 ) -> tuple[list[RunRecord], dict[str, Any], dict[str, str]]:
-    """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only), draw one
-    figure per task into ``out``; ``(runs, {env: summary}, {env: figure path})``.
+    """Find the runs under ``paths``, pool them per task and method (``strict``: finished runs only; ``seeds``:
+    only the runs of those seeds, though every run found is returned), draw one figure per task into ``out``;
+    ``(runs, {env: summary}, {env: figure path})``.
 
     R per task: ``level`` if given, else the task's DPN-PPO runs, else ``fallback_levels[env]`` (value, source; the
     source's words before " (" label the figure's line).
@@ -451,13 +462,20 @@ def summarize(
     out.mkdir(parents=True, exist_ok=True)
     summaries: dict[str, Any] = {}
     figures: dict[str, str] = {}
-    for env, algos in group_runs(runs).items():
+    chosen = runs if seeds is None else [run for run in runs if run.seed in seeds]
+    for env, algos in group_runs(chosen).items():
+        repeats: dict[str, list[RunRecord]] = {}
+        for algo in algos:
+            algos[algo], repeated = split_duplicates(algos[algo])
+            if repeated:
+                repeats[algo] = repeated
         pools, left = choose_pools(algos, strict)
         task_level, source, note = level, "--ppo-level", ""
         if task_level is None and PPO_LEVEL_ALGO not in pools and env in (fallback_levels or {}):
             task_level, source = fallback_levels[env]
             note = source.split(" (")[0]
         summary = task_summary(env, pools, task_level, source, left)
+        summary["duplicates"] = {algo: [left_out_entry(run) for run in rs] for algo, rs in sorted(repeats.items())}
         summaries[env] = summary
         if pools:
             reached = {algo: e["G"] for algo, e in summary["data_efficiency"].items()}

@@ -6,7 +6,9 @@ per task and ``report.json``, with each PPO seed's evals tabled (first, best, la
 runs that reached their budget are pooled; the others are listed apart. A method's runs are pooled over the generations
 they all reached, and the runs that went on are their own row. Our seeds are tested against the paper's 10 seeds by
 Welch's two-sided t-test from summary statistics (one seed: the t-test of a new value against the paper's sample),
-alpha 0.05.
+alpha 0.05. The claims and the pooled rows keep the paper's protocol, seeds 0-9 (its 10 runs); a method with finished
+seeds beyond them gets one more row, "all N seeds", pooling every finished seed, and the claims that compare two
+methods quote those pools beside their verdict, which stays on seeds 0-9.
 """
 
 from __future__ import annotations
@@ -25,16 +27,18 @@ from spn_torchrl.analysis.report import (
     PPO_LEVEL_ALGO,
     left_out_entry,
     level_text,
+    method_summary,
     stopped_lines,
     summarize,
     task_markdown,
 )
-from spn_torchrl.analysis.runs import RunRecord
+from spn_torchrl.analysis.runs import RunRecord, group_runs
 from spn_torchrl.analysis.stats import ALPHA, one_value, p_text, sample_sd, verdict, welch
 
 COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
 CONFIRMED, NOT_CONFIRMED, NOT_RUN = "confirmed", "not confirmed", "not yet run"
 TAIL = 0.1  # the share of a PPO run's env steps whose evals the seed tables span
+PAPER_SEEDS = range(paper.SEEDS)  # the paper's protocol: 10 runs (Sec. 4.2), our seeds 0-9
 PAPER_R_SOURCE = "paper's R (Table 1: DPN-PPO after 1e6 steps on Gym v2; no finished dpn_ppo run here)"
 
 
@@ -120,6 +124,28 @@ def against_paper(env: str, algo: str, m: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
+def all_seed_pools(runs: Sequence[RunRecord]) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{env: {algo: summary}}`` of every finished run, for each method with a finished seed outside
+    :data:`PAPER_SEEDS`: the "all N seeds" rows beside the paper-protocol ones."""
+    groups = group_runs([run for run in runs if run.finished])
+    return {
+        env: pools
+        for env, algos in groups.items()
+        if (
+            pools := {
+                algo: method_summary(group)
+                for algo, group in sorted(algos.items())
+                if any(run.seed not in PAPER_SEEDS for run in group)
+            }
+        )
+    }
+
+
+def _all_seeds(m: dict[str, Any]) -> str:
+    """``all 20 seeds``: the label of a pool of every finished seed."""
+    return f"all {len(m['seeds'])} seeds"
+
+
 def _claim(claim: str, paper_text: str, ours: str, status: str) -> dict[str, str]:
     return {"claim": claim, "paper": paper_text, "ours": ours, "status": status}
 
@@ -187,7 +213,18 @@ def _paper_versus(env: str) -> tuple[str, float]:
     return f"{_value(c.mean)} vs {_value(w.mean)}", test.p
 
 
-def _weights_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
+def _all_seeds_versus(c: dict[str, Any], w: dict[str, Any], extra: dict[str, dict[str, Any]]) -> str:
+    """``; all 20 / 20 seeds: 2300 vs 2900 (Welch: p = 0.01), not the claim's basis`` where either method has
+    seeds beyond the paper's 10 (its other pool: seeds 0-9), else empty."""
+    if "conn_ga" not in extra and "weights_ga" not in extra:
+        return ""
+    c, w = extra.get("conn_ga", c), extra.get("weights_ga", w)
+    text, p = _versus(c, w)
+    welch_text = f" (Welch: {p_text(p)})" if p is not None else ""
+    return f"; all {len(c['seeds'])} / {len(w['seeds'])} seeds: {text}{welch_text}, not the claim's basis"
+
+
+def _weights_claims(tasks: dict[str, Any], extra: dict[str, dict[str, dict[str, Any]]]) -> list[dict[str, str]]:
     out = []
     for env in (*paper.CONNECTIONS_BEAT_WEIGHTS, *paper.CONNECTIONS_MATCH_WEIGHTS):
         beat = env in paper.CONNECTIONS_BEAT_WEIGHTS
@@ -200,6 +237,7 @@ def _weights_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
             continue
         ours, p = _versus(c, w)
         ours = f"{ours} at generations {c['rows']} / {w['rows']}" + (f" (Welch: {p_text(p)})" if p is not None else "")
+        ours += _all_seeds_versus(c, w, extra.get(env, {}))
         if beat:
             status = CONFIRMED if c["final_return_mean"] > w["final_return_mean"] else NOT_CONFIRMED
         else:
@@ -305,9 +343,11 @@ def _table_claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
     return out
 
 
-def claims(tasks: dict[str, Any]) -> list[dict[str, str]]:
-    """Each of the paper's claims with the paper's figure, ours and a status (confirmed, not confirmed, not yet run)."""
-    return _reach_claims(tasks) + _weights_claims(tasks) + _conn_ppo_claims(tasks) + _table_claims(tasks)
+def claims(tasks: dict[str, Any], extra: dict[str, dict[str, dict[str, Any]]] | None = None) -> list[dict[str, str]]:
+    """Each of the paper's claims with the paper's figure, ours and a status (confirmed, not confirmed, not yet run),
+    judged on ``tasks`` (the paper-protocol pools); ``extra`` (:func:`all_seed_pools`) is quoted, never judged."""
+    extra = extra or {}
+    return _reach_claims(tasks) + _weights_claims(tasks, extra) + _conn_ppo_claims(tasks) + _table_claims(tasks)
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
@@ -316,23 +356,38 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
 
 
 def comparison_markdown(
-    env: str, s: dict[str, Any], figure: str | None, seeds: dict[str, list[dict[str, Any]]]
+    env: str,
+    s: dict[str, Any],
+    figure: str | None,
+    seeds: dict[str, list[dict[str, Any]]],
+    extra: dict[str, dict[str, Any]] | None = None,
 ) -> tuple[list[str], list[dict[str, Any]]]:
-    """One task's section: our last generation against the paper's, per method, the learning curves and each PPO
-    method's ``seeds`` (from :func:`ppo_seeds`)."""
+    """One task's section: our last generation against the paper's, per method, the learning curves, each PPO
+    method's ``seeds`` (from :func:`ppo_seeds`) and, after a method's rows, its pool of all seeds in ``extra``
+    (``{algo: summary}`` of :func:`all_seed_pools`)."""
+    extra = extra or {}
     out = [f"## {_title(env)} ({s['env_id']}, n={s['n']}, m={s['m']})", ""]
     if figure:
         out += [f"![learning curves]({figure})", ""]
     rows, data = [], []
-    for algo, method in s["methods"].items():
-        for m in (method, *method["longer"]):
+    for algo in sorted(s["methods"].keys() | extra.keys()):
+        title, method = paper.METHOD_TITLES.get(algo, algo), s["methods"].get(algo)
+        pools = []
+        if method is not None:
+            pools = [(method, title)] + [
+                (m, f"{title}: seed(s) {', '.join(map(str, m['seeds']))} alone") for m in method["longer"]
+            ]
+        if algo in extra:
+            pools.append((extra[algo], f"{title}: {_all_seeds(extra[algo])}"))
+        for m, label in pools:
             row = against_paper(env, algo, m)
+            if m is extra.get(algo):
+                row["pool"] = _all_seeds(m)
             data.append(row)
             published = row["paper"]
-            title = paper.METHOD_TITLES.get(algo, algo)
             rows.append(
                 [
-                    title if m is method else f"{title}: seed(s) {', '.join(map(str, m['seeds']))} alone",
+                    label,
                     row["seeds"],
                     f"{row['generation']}{' (shortened, deliberate)' if row['shortened'] else ''}",
                     _value(row["mean"]) if row["seeds"] == 1 else _pm(row["mean"], row["std"]),
@@ -355,6 +410,13 @@ def comparison_markdown(
         ],
         rows,
     )
+    for algo, m in extra.items():
+        title = paper.METHOD_TITLES.get(algo, algo)
+        out += [
+            "",
+            f"{title}, {_all_seeds(m)}: every finished seed pooled ({', '.join(map(str, m['seeds']))}); the "
+            f"claims and the other rows keep the paper's protocol, seeds 0-{paper.SEEDS - 1}.",
+        ]
     for algo, m in s["methods"].items():
         title = paper.METHOD_TITLES.get(algo, algo)
         if _shortened(m):
@@ -442,8 +504,15 @@ def build_reproduction(
     finished runs under ``paths``; return the numbers, the claims and the runs left out."""
     out = Path(out)
     runs, tasks, figures = summarize(
-        paths, out, level, strict=True, fallback_levels=paper_levels(), published=published_markers()
+        paths,
+        out,
+        level,
+        strict=True,
+        fallback_levels=paper_levels(),
+        published=published_markers(),
+        seeds=PAPER_SEEDS,
     )
+    extra = all_seed_pools(runs)
     preface = out / "PREFACE.md" if preface is None else Path(preface)
     lines = [preface.read_text().rstrip(), ""] if preface.is_file() else []
     finished = [run for run in runs if run.finished]
@@ -463,8 +532,22 @@ def build_reproduction(
         f"converted from ddof=0 with n=10), two-sided, alpha {ALPHA}.",
         "",
     ]
+    if extra:
+        lines += [
+            f"The rows and the claims keep the paper's protocol, our seeds 0-{paper.SEEDS - 1}; a method with "
+            "finished seeds beyond them has one more row, *all N seeds*, which pools every finished seed.",
+            "",
+        ]
+    alone = [
+        f"{env} {algo} seeds {m['seeds']}" for env in extra.keys() - tasks.keys() for algo, m in extra[env].items()
+    ]
+    if alone:
+        lines += [
+            f"Finished runs of tasks with no run of seeds 0-{paper.SEEDS - 1}, not reported: {'; '.join(sorted(alone))}.",
+            "",
+        ]
     lines += stopped_lines(runs)
-    claim_rows = claims(tasks)
+    claim_rows = claims(tasks, extra)
     lines += ["## The paper's claims", ""]
     lines += _table(
         ["claim", "paper", "ours", "status"],
@@ -489,13 +572,15 @@ def build_reproduction(
     comparisons = {}
     for env, summary in tasks.items():
         figure = Path(figures[env]).name if env in figures else None
-        section, comparisons[env] = comparison_markdown(env, summary, figure, seeds.get(env, {}))
+        section, comparisons[env] = comparison_markdown(env, summary, figure, seeds.get(env, {}), extra.get(env))
         lines += section
     lines += ["## Details per task (the report's own tables: data efficiency, energy)", ""]
     for summary in tasks.values():
         lines += ["#" + line if line.startswith("#") else line for line in task_markdown(summary, None)]
     (out / "README.md").write_text("\n".join(lines).rstrip() + "\n")
     payload = {"tasks": tasks, "comparisons": comparisons, "claims": claim_rows, "ppo_seeds": seeds}
+    if extra:
+        payload["all_seeds"] = extra
     (out / "report.json").write_text(json.dumps(payload, indent=2, default=float))
     return {
         "tasks": tasks,
@@ -504,5 +589,6 @@ def build_reproduction(
         "claims": claim_rows,
         "comparisons": comparisons,
         "ppo_seeds": seeds,
+        "all_seeds": extra,
         "stopped": [left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in runs if not run.finished],
     }

@@ -11,6 +11,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl.errors import SpnError
+from spn_torchrl.lifecycle import BUDGET, affects_results, flatten
 from spn_torchrl.records import read_progress
 
 # where a run's resolved config lies: a Hydra run directory, or a collected copy (reproduction/runs/)
@@ -48,13 +49,13 @@ class RunRecord:
     @property
     def budget(self) -> int | None:
         """What the run was asked for: generations (GA) or env steps (PPO); None where the config does not say."""
-        value = self.config.algo.get("generations" if self.kind == "ga" else "total_env_steps")
+        value = self.config.algo.get("total_env_steps" if self.kind == "ppo" else "generations")
         return None if value is None else int(value)
 
     @property
     def done(self) -> int:
         """How far it got: generations logged (GA) or its last total_env_steps (PPO)."""
-        if self.kind == "ga":
+        if self.kind != "ppo":  # a GA or EC run: one row a generation
             return len(self.rows)
         return int(self.rows[-1].get("total_env_steps") or 0)
 
@@ -66,8 +67,17 @@ class RunRecord:
     @property
     def progress_text(self) -> str:
         """``3 of 30 generations`` or ``2000 of 1000000 env steps``."""
-        unit = "generations" if self.kind == "ga" else "env steps"
+        unit = "env steps" if self.kind == "ppo" else "generations"
         return f"{self.done} of {'?' if self.budget is None else self.budget} {unit}"
+
+    @property
+    def results_config(self) -> dict[str, str]:
+        """The fields of its config that change results (as the resume contract counts them), less the seed (what
+        is pooled), the budget (runs of different lengths are cut to the rows all reached) and ``env.name`` (a
+        label): two runs that differ here are not seeds of one method."""
+        flat = flatten(OmegaConf.to_container(self.config, resolve=False))
+        skip = ("seed", "env.name", BUDGET.get(self.kind, ""))
+        return {k: repr(v) for k, v in sorted(flat.items()) if k not in skip and affects_results(k, self.kind)}
 
     def snn(self, name: str, default: Any) -> Any:
         """An SNN constant (``hidden``, ``time_steps``, ...) from ``algo.snn`` (new schema) or ``algo`` (old)."""
@@ -123,11 +133,46 @@ def pool_choice(runs: Sequence[RunRecord]) -> tuple[list[RunRecord], list[RunRec
 
 
 def group_runs(runs: Sequence[RunRecord]) -> dict[str, dict[str, list[RunRecord]]]:
-    """``{env: {algo: [runs, seeds pooled]}}``."""
-    groups: dict[str, dict[str, list[RunRecord]]] = {}
+    """``{task: {method: [runs, seeds pooled]}}``. The task is ``env.id``, named by its ``env.name`` (or
+    ``{env.name}__{env.id}`` where one name labels several ids); a method is ``algo.name`` and the config fields that
+    change results (:meth:`RunRecord.results_config`): where the runs of one name differ there, each config is its own
+    method, named ``algo (field=value, ...)`` by the fields that differ."""
+    names: dict[str, set[str]] = {}
     for run in runs:
-        groups.setdefault(run.env, {}).setdefault(run.algo, []).append(run)
-    return groups
+        names.setdefault(run.env, set()).add(run.env_id)
+    by_task: dict[str, dict[str, list[RunRecord]]] = {}
+    for run in runs:
+        task = run.env if len(names[run.env]) == 1 else f"{run.env}__{run.env_id}"
+        by_task.setdefault(task, {}).setdefault(run.algo, []).append(run)
+    return {task: _split_configs(algos) for task, algos in by_task.items()}
+
+
+def _split_configs(algos: dict[str, list[RunRecord]]) -> dict[str, list[RunRecord]]:
+    out: dict[str, list[RunRecord]] = {}
+    for algo, runs in algos.items():
+        configs: list[dict[str, str]] = []
+        for run in runs:
+            if run.results_config not in configs:
+                configs.append(run.results_config)
+        if len(configs) == 1:
+            out[algo] = runs
+            continue
+        differ = sorted({k for c in configs for k in {*c, *configs[0]} if c.get(k) != configs[0].get(k)})
+        for config in configs:
+            label = ", ".join(f"{k}={config.get(k, '<absent>')}" for k in differ)
+            out[f"{algo} ({label})"] = [run for run in runs if run.results_config == config]
+    return out
+
+
+def split_duplicates(runs: Sequence[RunRecord]) -> tuple[list[RunRecord], list[RunRecord]]:
+    """(one run per seed, the others): a seed repeated under one method (the same run copied, or run twice) counts
+    once, its first run by path; the repeats are listed apart, never pooled as further seeds."""
+    seen: set[int] = set()
+    unique, repeats = [], []
+    for run in sorted(runs, key=lambda r: str(r.path)):
+        (repeats if run.seed in seen else unique).append(run)
+        seen.add(run.seed)
+    return sorted(unique, key=lambda r: (r.seed, str(r.path))), repeats
 
 
 def common_length(runs: Sequence[RunRecord]) -> int:

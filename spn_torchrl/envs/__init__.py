@@ -21,7 +21,9 @@ from torchrl.envs import (
 
 from spn_torchrl.envs.cartpole import ENV_ID as CARTPOLE_ID
 from spn_torchrl.envs.cartpole import cartpole_batch_backend
+from spn_torchrl.envs.gym_v2 import V2_TASKS, check_gym_v2, gym_v2_backend
 from spn_torchrl.envs.mujoco import BATCH_TASKS, mujoco_batch_backend
+from spn_torchrl.envs.mujoco210 import MJ210_TASKS, mujoco210_backend
 from spn_torchrl.envs.mujoco_warp import WARP_SIZES, mujoco_warp_backend
 from spn_torchrl.errors import ConfigError
 
@@ -30,6 +32,15 @@ TASKS = {
     "halfcheetah": "HalfCheetah-v5",
     "swimmer": "Swimmer-v5",
     "humanoidstandup": "HumanoidStandup-v5",
+    # beyond the paper (issue 46): the locomotion tasks, with their healthy-state termination
+    "hopper": "Hopper-v5",
+    "walker2d": "Walker2d-v5",
+    "ant": "Ant-v5",
+    "humanoid": "Humanoid-v5",
+    "invertedpendulum": "InvertedPendulum-v5",
+    "inverteddoublependulum": "InvertedDoublePendulum-v5",
+    "reacher": "Reacher-v5",
+    "pusher": "Pusher-v5",
 }
 
 
@@ -47,7 +58,12 @@ class TaskSpec:
 
 
 def task_spec(env_id: str) -> TaskSpec:
-    """Spec of a Gymnasium task id; a clear error for an id Gymnasium does not know."""
+    """Spec of a Gymnasium task id (or a Gym 0.21 v2 id of env.backend=gym_v2); a clear error for an id Gymnasium
+    does not know."""
+    if env_id in V2_TASKS:  # Gymnasium registers the v2 ids only to refuse them
+        v2 = V2_TASKS[env_id]
+        bound = torch.full((v2.n_act,), v2.action_bound)
+        return TaskSpec(env_id, v2.n_obs, v2.n_act, False, v2.max_episode_steps, -bound, bound)
     try:
         spec = gym.spec(env_id)
     except gym.error.Error as err:
@@ -91,11 +107,13 @@ def gymnasium_backend(env_id: str, num_envs: int, threads: int = 1) -> EnvBase:
 @dataclass(frozen=True)
 class Backend:
     """An env backend: its factory ``(env_id, num_envs, threads[, device]) -> env``, the ids it supports (None:
-    any) and whether it runs on ``env.device`` (else on the CPU)."""
+    any), whether it runs on ``env.device`` (else on the CPU) and a check of what it needs beyond the config
+    (``check(env_id)`` raises ConfigError)."""
 
     factory: Callable[..., EnvBase]
     env_ids: tuple[str, ...] | None = None
     on_device: bool = False
+    check: Callable[[str], None] | None = None
 
 
 BACKENDS: dict[str, Backend] = {
@@ -103,6 +121,8 @@ BACKENDS: dict[str, Backend] = {
     "mujoco_batch": Backend(mujoco_batch_backend, tuple(BATCH_TASKS)),
     "cartpole_batch": Backend(cartpole_batch_backend, (CARTPOLE_ID,)),
     "mujoco_warp": Backend(mujoco_warp_backend, tuple(WARP_SIZES), on_device=True),  # the gpu extra
+    "gym_v2": Backend(gym_v2_backend, tuple(V2_TASKS), check=check_gym_v2),  # scripts/make_gym_v2_env.sh
+    "mujoco_batch_mj210": Backend(mujoco210_backend, tuple(MJ210_TASKS)),  # MuJoCo 2.1.0's body inertias
 }
 
 
@@ -115,6 +135,8 @@ def check_backend(backend: str, env_id: str) -> None:
         raise ConfigError(
             f"env.backend={backend} steps {', '.join(ids)} only, not env.id={env_id!r}: use env.backend=gymnasium"
         )
+    if BACKENDS[backend].check is not None:
+        BACKENDS[backend].check(env_id)
 
 
 def make_batched_env(

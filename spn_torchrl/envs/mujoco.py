@@ -1,10 +1,13 @@
 """TorchRL envs of P copies of a Gymnasium v5 MuJoCo task, stepped on C threads.
 
-Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup: observation, reward
-terms, reset distribution and seeding, frame skip and the 1000-step time limit (truncation); slots, seeding and
-masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. HalfCheetah and Swimmer step in one ``mujoco.batch.Batch``
-call; HumanoidStandup, whose observation and reward need ``mj_rnePostConstraint`` after every step, steps one
-``MjData`` per simulation on a thread pool (:class:`DataSimulations`), so that the call runs in place.
+Replicates Gymnasium v5 (default kwargs) of HalfCheetah, Swimmer and HumanoidStandup, of the locomotion tasks
+Hopper, Walker2d, Ant and Humanoid, of InvertedPendulum and InvertedDoublePendulum, and of Reacher and Pusher (their
+terms in :mod:`spn_torchrl.envs.mujoco_tasks`, with the termination of each): observation, reward terms, reset
+distribution and seeding, frame skip and the time limit (truncation at 1000 steps; Reacher's 50, Pusher's 100);
+slots, seeding and masks as :class:`~spn_torchrl.envs.batch.BatchEnv`. Most tasks step in one
+``mujoco.batch.Batch`` call; HumanoidStandup, Ant and Humanoid, whose observation and reward read the contact forces
+that ``mj_rnePostConstraint`` computes after every step, step one ``MjData`` per simulation on a thread pool
+(:class:`DataSimulations`), so that the call runs in place.
 """
 
 from __future__ import annotations
@@ -23,6 +26,18 @@ from torchrl.data import Bounded
 from torchrl.envs import EnvBase
 
 from spn_torchrl.envs.batch import BatchEnv, rows
+from spn_torchrl.envs.mujoco_tasks import (
+    ANT,
+    HOPPER,
+    HUMANOID,
+    INVERTED_DOUBLE_PENDULUM,
+    INVERTED_PENDULUM,
+    PUSHER,
+    REACHER,
+    WALKER2D,
+    Terms,
+    com_parts,
+)
 from spn_torchrl.errors import ConfigError
 
 
@@ -38,16 +53,30 @@ class BatchTask:
     ctrl_cost_weight: float
     standup: bool = False  # HumanoidStandup: com-based observation, up-height reward, impact cost
     max_episode_steps: int = 1000
+    terms: Terms | None = None  # a task with its own observation, reward and termination (envs/mujoco_tasks.py)
 
 
 BATCH_TASKS: dict[str, BatchTask] = {
     "HalfCheetah-v5": BatchTask("half_cheetah.xml", 5, 0.1, "normal", 1, 0.1),
     "Swimmer-v5": BatchTask("swimmer.xml", 4, 0.1, "uniform", 2, 1e-4),
     "HumanoidStandup-v5": BatchTask("humanoidstandup.xml", 5, 1e-2, "uniform", 2, 0.1, standup=True),
+    # the locomotion tasks (hopper_v5.py, walker2d_v5.py, ant_v5.py, humanoid_v5.py): terms in envs/mujoco_tasks.py
+    "Hopper-v5": BatchTask("hopper.xml", 4, 5e-3, "uniform", 1, 1e-3, terms=HOPPER),
+    "Walker2d-v5": BatchTask("walker2d_v5.xml", 4, 5e-3, "uniform", 1, 1e-3, terms=WALKER2D),
+    "Ant-v5": BatchTask("ant.xml", 5, 0.1, "normal", 2, 0.5, terms=ANT),
+    "Humanoid-v5": BatchTask("humanoid.xml", 5, 1e-2, "uniform", 2, 0.1, terms=HUMANOID),
+    "InvertedPendulum-v5": BatchTask("inverted_pendulum.xml", 2, 0.01, "uniform", 0, 0.0, terms=INVERTED_PENDULUM),
+    "InvertedDoublePendulum-v5": BatchTask(
+        "inverted_double_pendulum.xml", 5, 0.1, "normal", 0, 0.0, terms=INVERTED_DOUBLE_PENDULUM
+    ),
+    # reacher_v5.py, pusher_v5.py: their own reset draws (terms.reset), so no noise scale; 50 and 100 steps an episode
+    "Reacher-v5": BatchTask("reacher.xml", 2, 0.0, "uniform", 0, 1.0, max_episode_steps=50, terms=REACHER),
+    "Pusher-v5": BatchTask("pusher_v5.xml", 5, 0.0, "uniform", 0, 0.1, max_episode_steps=100, terms=PUSHER),
 }
 IMPACT_COST_WEIGHT = 0.5e-6
 IMPACT_COST_MAX = 10.0
 STANDUP_FIELDS = ("cinert", "cvel", "qfrc_actuator", "cfrc_ext")  # HumanoidStandup's observation beyond qpos, qvel
+POST_CONSTRAINT_FIELDS = frozenset({"cacc", "cfrc_int", "cfrc_ext"})  # what mj_rnePostConstraint computes
 
 
 def batch_task(env_id: str, backend: str = "mujoco_batch") -> BatchTask:
@@ -62,6 +91,8 @@ def batch_task(env_id: str, backend: str = "mujoco_batch") -> BatchTask:
 
 def observation_size(model: mujoco.MjModel, task: BatchTask) -> int:
     """Length of Gymnasium v5's observation of a task."""
+    if task.terms is not None:
+        return task.terms.size(model)
     size = model.nq - task.skipped_qpos + model.nv
     if task.standup:
         size += (model.nbody - 1) * (10 + 6 + 6) + (model.nv - 6)
@@ -70,6 +101,8 @@ def observation_size(model: mujoco.MjModel, task: BatchTask) -> int:
 
 def initial_state(task: BatchTask, model: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Gymnasium v5's reset draw of a task from a slot's generator: qpos [nq] and qvel [nv], float64."""
+    if task.terms is not None and task.terms.reset is not None:
+        return task.terms.reset(model, rng)
     scale = task.reset_noise_scale
     qpos = model.qpos0 + rng.uniform(low=-scale, high=scale, size=model.nq)
     if task.qvel_noise == "normal":
@@ -80,11 +113,14 @@ def initial_state(task: BatchTask, model: mujoco.MjModel, rng: np.random.Generat
 
 
 class BatchSimulations:
-    """P simulations in one ``mujoco.batch.Batch``: ``qpos``, ``qvel`` and ``ctrl`` are live [P, ...] views."""
+    """P simulations in one ``mujoco.batch.Batch``: ``qpos``, ``qvel``, ``ctrl`` and the ``fields`` are live
+    [P, ...] arrays (the fields describe the state before the last substep, as after ``mj_step``)."""
 
-    def __init__(self, model: mujoco.MjModel, num_envs: int, threads: int) -> None:
+    def __init__(self, model: mujoco.MjModel, num_envs: int, threads: int, fields: tuple[str, ...] = ()) -> None:
         self.batch = Batch(model, num_envs, nthread=threads)
         self.qpos, self.qvel, self.ctrl = self.batch.bind("qpos"), self.batch.bind("qvel"), self.batch.bind("ctrl")
+        for name in fields:
+            setattr(self, name, self.batch.bind(name))
 
     def reset(self, ids: np.ndarray | None, qpos: np.ndarray, qvel: np.ndarray) -> None:
         """Gymnasium's reset of simulations ``ids`` (None: all) to the rows of ``qpos`` and ``qvel``."""
@@ -165,21 +201,23 @@ class DataSimulations:
 class MujocoBatchEnv(BatchEnv):
     """P simulations of one task on ``num_threads`` MuJoCo threads, as a TorchRL env of batch size [P]."""
 
-    def __init__(self, env_id: str, num_envs: int, num_threads: int = 1) -> None:
+    def __init__(self, env_id: str, num_envs: int, num_threads: int = 1, model: mujoco.MjModel | None = None) -> None:
+        """``model``: the task's model, changed (e.g. :mod:`~spn_torchrl.envs.mujoco210`); None: from its XML."""
         task = batch_task(env_id)
         self.env_id = env_id
         self.task = task
-        self.model = mujoco.MjModel.from_xml_path(expand_model_path(task.xml))
+        self.model = mujoco.MjModel.from_xml_path(expand_model_path(task.xml)) if model is None else model
         m = self.model
         p = num_envs
         low = torch.as_tensor(m.actuator_ctrlrange[:, 0], dtype=torch.float32)
         high = torch.as_tensor(m.actuator_ctrlrange[:, 1], dtype=torch.float32)
         action_spec = Bounded(low.expand(p, m.nu), high.expand(p, m.nu), shape=(p, m.nu), dtype=torch.float32)
         super().__init__(num_envs, observation_size(m, task), action_spec, task.max_episode_steps)
-        if task.standup:
-            self.sims = DataSimulations(m, num_envs, num_threads, STANDUP_FIELDS)
+        fields = STANDUP_FIELDS if task.standup else () if task.terms is None else task.terms.fields
+        if POST_CONSTRAINT_FIELDS.intersection(fields):
+            self.sims = DataSimulations(m, num_envs, num_threads, fields)
         else:
-            self.sims = BatchSimulations(m, num_envs, num_threads)
+            self.sims = BatchSimulations(m, num_envs, num_threads, fields)
         self.dt = m.opt.timestep * task.frame_skip
         self._x_before = np.zeros(p)
         self.physics_seconds = 0.0  # the physics alone (benchmarks read it): see the simulations' step
@@ -191,12 +229,9 @@ class MujocoBatchEnv(BatchEnv):
         k = task.skipped_qpos
         parts = [sims.qpos[slots, k:], sims.qvel[slots]]
         if task.standup:
-            parts += [
-                sims.cinert[slots, 1:].reshape(-1, (m.nbody - 1) * 10),
-                sims.cvel[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
-                sims.qfrc_actuator[slots, 6:],
-                sims.cfrc_ext[slots, 1:].reshape(-1, (m.nbody - 1) * 6),
-            ]
+            parts += com_parts(m, sims, slots)
+        if task.terms is not None:  # a task's own observation
+            parts = task.terms.observe(m, sims, slots)
         if ids is None:
             np.concatenate(parts, axis=1, out=self._obs)
         else:
@@ -212,9 +247,17 @@ class MujocoBatchEnv(BatchEnv):
         slots = rows(ids)
         task, sims = self.task, self.sims
         sims.ctrl[slots] = action
-        if not task.standup:
+        if task.terms is not None:
+            self._x_before[slots] = task.terms.position(self.model, sims, slots)
+        elif not task.standup:
             self._x_before[slots] = sims.qpos[slots, 0]
         self.physics_seconds += sims.step(ids, task.frame_skip)
+        if task.terms is not None:  # the task's own reward; the loss of its healthy state ends the episode
+            x_velocity = (task.terms.position(self.model, sims, slots) - self._x_before[slots]) / self.dt
+            self._reward[slots], healthy = task.terms.reward(
+                self.model, sims, slots, action, x_velocity, task.ctrl_cost_weight
+            )
+            self._terminated[slots] = ~healthy
         if task.standup:
             uph = sims.qpos[slots, 2] / self.model.opt.timestep
             quad_ctrl = task.ctrl_cost_weight * np.square(sims.ctrl[slots]).sum(-1)
@@ -222,7 +265,7 @@ class MujocoBatchEnv(BatchEnv):
                 IMPACT_COST_WEIGHT * np.square(sims.cfrc_ext[slots]).reshape(len(uph), -1).sum(-1), IMPACT_COST_MAX
             )
             self._reward[slots] = uph - quad_ctrl - impact + 1
-        else:
+        elif task.terms is None:
             # float32 action -> float32 control cost, as Gymnasium computes it on the action it is given
             ctrl_cost = task.ctrl_cost_weight * np.square(action).sum(-1)
             self._reward[slots] = (sims.qpos[slots, 0] - self._x_before[slots]) / self.dt - ctrl_cost

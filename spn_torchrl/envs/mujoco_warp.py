@@ -92,6 +92,11 @@ class MujocoWarpEnv(EnvBase):
 
     def __init__(self, env_id: str, num_envs: int, device: str = "cpu") -> None:
         task = batch_task(env_id, "mujoco_warp")
+        if env_id not in WARP_SIZES:
+            raise ConfigError(
+                f"env.backend=mujoco_warp supports {', '.join(WARP_SIZES)}, not {env_id!r}: "
+                "use env.backend=mujoco_batch or gymnasium for it"
+            )
         dev = torch_device(device)
         wp = require("warp", "gpu")
         mjw = require("mujoco_warp", "gpu")

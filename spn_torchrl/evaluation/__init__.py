@@ -12,7 +12,7 @@ import logging
 import os
 from collections.abc import Callable
 
-from spn_torchrl.config import GAConfig, LocalEvaluatorConfig, RayEvaluatorConfig, RunConfig
+from spn_torchrl.config import EVOLUTION, LocalEvaluatorConfig, RayEvaluatorConfig, RunConfig
 from spn_torchrl.envs import TaskSpec, make_batched_env
 from spn_torchrl.errors import require
 from spn_torchrl.evaluation.processes import CALL_TIMEOUT_S, ProcessEvaluator, spawn_blocked_by
@@ -34,9 +34,9 @@ def local_processes(evaluator: LocalEvaluatorConfig, threads: int, slots: int, d
 
 
 def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The GA's evaluation slots on this machine, in :func:`local_processes` processes."""
+    """The GA's or EC's evaluation slots on this machine, in :func:`local_processes` processes."""
     algo, evaluator = cfg.algo, cfg.evaluator
-    assert isinstance(algo, GAConfig) and isinstance(evaluator, LocalEvaluatorConfig)
+    assert isinstance(algo, EVOLUTION) and isinstance(evaluator, LocalEvaluatorConfig)
     slots = algo.evaluation_slots
     return machine_evaluator(
         spn,

@@ -25,6 +25,7 @@ from spn_torchrl.config import LocalEvaluatorConfig
 from spn_torchrl.errors import ConfigError, EvaluatorError, SpnError
 from spn_torchrl.evaluation.rollout import Episodes
 from spn_torchrl.evaluation.shards import Results, ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
 CALL_TIMEOUT_S = LocalEvaluatorConfig.call_timeout_s  # a genome set's evaluation past this is a stall
@@ -105,9 +106,13 @@ class ProcessEvaluator:
             self.close()
             raise
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
-        requests = shard_requests(self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes")
-        asked = [(index, ("evaluate", (shard, shard_seeds))) for index, _, _, shard, shard_seeds in requests]
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
+        requests = shard_requests(
+            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", norm
+        )
+        asked = [
+            (index, ("evaluate", (shard, shard_seeds, part))) for index, _, _, shard, shard_seeds, part in requests
+        ]
         return merge(self._ask(asked, "evaluate"))
 
     def gather(self, query: str) -> list:

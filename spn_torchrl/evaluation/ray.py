@@ -23,6 +23,7 @@ from spn_torchrl.envs import TaskSpec
 from spn_torchrl.errors import EvaluatorError
 from spn_torchrl.evaluation.rollout import Episodes
 from spn_torchrl.evaluation.shards import ShardWorker, merge, shard_bounds, shard_requests, without_genomes
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
@@ -46,13 +47,14 @@ class RayEvaluator:
         self.bytes_sent = 0  # genomes and seeds, every call
         self.bytes_received = 0  # returns, steps, spikes, every call
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
         calls = []
-        for index, start, stop, shard, shard_seeds in shard_requests(
-            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors"
+        for index, start, stop, shard, shard_seeds, part in shard_requests(
+            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors", norm
         ):
             self.bytes_sent += shard.nbytes + shard_seeds.nbytes  # + an int64 seed per genome
-            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seeds)))
+            self.bytes_sent += 0 if part is None else sum(rows.nbytes for rows in part)
+            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seeds, part)))
         deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
         return merge([self._collect(*call, deadline) for call in calls])
 

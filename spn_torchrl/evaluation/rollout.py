@@ -15,6 +15,7 @@ from torchrl.envs import EnvBase
 from spn_torchrl.envs.batch import BatchEnv
 from spn_torchrl.envs.mujoco_warp import MujocoWarpEnv
 from spn_torchrl.seeds import slot_seeds
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
 log = logging.getLogger("spn_torchrl")
@@ -22,11 +23,16 @@ log = logging.getLogger("spn_torchrl")
 
 @dataclass
 class Episodes:
-    """One episode per individual: undiscounted return, env steps and total hidden spikes."""
+    """One episode per individual: undiscounted return, env steps and total hidden spikes; with normalised
+    observations also the moments of the observations each policy saw (count [B], sum and sum of squares
+    [B, n], float64), from which the running statistics are updated."""
 
     returns: torch.Tensor
     steps: torch.Tensor
     spikes: torch.Tensor
+    obs_count: torch.Tensor | None = None
+    obs_sum: torch.Tensor | None = None
+    obs_squares: torch.Tensor | None = None
 
     @property
     def total_steps(self) -> int:
@@ -34,7 +40,15 @@ class Episodes:
 
     def part(self, start: int, stop: int) -> Episodes:
         """The episodes of individuals ``start`` to ``stop - 1``."""
-        return Episodes(self.returns[start:stop], self.steps[start:stop], self.spikes[start:stop])
+        fields = (self.returns, self.steps, self.spikes, self.obs_count, self.obs_sum, self.obs_squares)
+        return Episodes(*(None if f is None else f[start:stop] for f in fields))
+
+    @property
+    def moments(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The observation moments per individual (count, sum, sum of squares)."""
+        if self.obs_count is None:
+            raise ValueError("these episodes were run without observation normalisation: no moments")
+        return self.obs_count, self.obs_sum, self.obs_squares
 
 
 def spike_rate(spikes: torch.Tensor, steps: torch.Tensor, hidden: int, time_steps: int) -> float:
@@ -72,24 +86,32 @@ class PopulationEvaluator:
             raise ValueError(f"the evaluator steps an env of batch [P], got {tuple(self.shape)}")
         self._td: TensorDictBase | None = None
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray) -> Episodes:
+    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
+        """One episode per genome; ``norm``: each genome's observation normalisation ([B, n] or [1, n]), whose
+        episodes then also return the moments of what each policy saw."""
         count = genomes.shape[0]
         if not 0 < count <= self.size:
             raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
         idle = np.zeros(self.size - count, dtype=np.int64)  # any seed: idle slots are never counted
         seeds = np.concatenate([slot_seeds(seeds, count), idle])
         self.spn.set_genomes(genomes)
+        self.spn.set_observation_norm(norm)
         if self.on_device:
+            if norm is not None:
+                raise ValueError("the device loop does not gather observation statistics")
             return self._run_on_device(count, seeds)
         active = torch.arange(self.size) < count
         returns = torch.zeros(self.size)
         steps = torch.full((self.size,), self.max_episode_steps)  # until a slot's episode ends earlier
         spikes = torch.zeros(count)
         everyone = count == self.size  # while every slot runs, nothing needs masking
+        seen = None if norm is None else ObservedMoments(count)
 
         self._td = self.env.reset(seed=seeds.tolist())
         obs = self._td.get("observation").reshape(self.size, -1)
         for step in range(1, self.max_episode_steps + 1):
+            if seen is not None:
+                seen.add(obs[:count], None if everyone else active[:count])
             # the SPN called directly: a TensorDictModule wrapper costs more per step than the SNN
             action, hidden_spikes = self.spn(obs[:count])
             spikes += hidden_spikes if everyone else hidden_spikes * active[:count]
@@ -103,7 +125,10 @@ class PopulationEvaluator:
                 if not active.any():
                     break
         self._td = None
-        return Episodes(returns[:count], steps[:count], spikes)
+        episodes = Episodes(returns[:count], steps[:count], spikes)
+        if seen is not None:
+            episodes.obs_count, episodes.obs_sum, episodes.obs_squares = seen.count, seen.sum, seen.squares
+        return episodes
 
     def _run_on_device(self, count: int, seeds: np.ndarray) -> Episodes:
         """The episode loop on the env's device: the same sums in the same order as the CPU loop, with no
@@ -155,9 +180,30 @@ class PopulationEvaluator:
             self.env.close()
 
 
-class Evaluator(Protocol):
-    """What the GA loop needs: genomes [B, D] and their env seeds [B] in, one episode per genome out."""
+class ObservedMoments:
+    """Per env slot, the count, sum and sum of squares (float64) of the observations its policy saw."""
 
-    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray) -> Episodes: ...
+    def __init__(self, count: int) -> None:
+        self.count = torch.zeros(count, dtype=torch.int64)
+        self.sum: torch.Tensor | None = None
+        self.squares: torch.Tensor | None = None
+
+    def add(self, obs: torch.Tensor, active: torch.Tensor | None) -> None:
+        """One step's observations [B, n] of the ``active`` slots (None: all)."""
+        x = torch.as_tensor(obs).to(torch.float64)
+        if self.sum is None:
+            self.sum, self.squares = torch.zeros_like(x), torch.zeros_like(x)
+        if active is not None:
+            x = torch.where(active[:, None], x, 0.0)
+        self.count += 1 if active is None else active.to(torch.int64)
+        self.sum += x
+        self.squares += x * x
+
+
+class Evaluator(Protocol):
+    """What the GA loop needs: genomes [B, D] and their env seeds [B] in (and, with normalised observations,
+    each genome's normalisation), one episode per genome out."""
+
+    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray, norm: Norm | None = None) -> Episodes: ...
 
     def close(self) -> None: ...

@@ -18,9 +18,12 @@ import torch
 from spn_torchrl.envs import make_batched_env
 from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator
 from spn_torchrl.seeds import slot_seeds
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN
 
-Results = tuple[np.ndarray, np.ndarray, np.ndarray]  # returns, steps, spikes of one shard
+# returns, steps, spikes of one shard (and, with normalised observations, its slots' observation moments)
+Results = tuple[np.ndarray, ...]
+ShardNorm = tuple[np.ndarray, np.ndarray] | None  # one shard's (mean, inv_std) [b, n] float32, or None
 
 
 def shard_bounds(count: int, parts: int) -> list[tuple[int, int]]:
@@ -46,16 +49,32 @@ def encode_genomes(spn: PopulationSPN, genomes: torch.Tensor) -> np.ndarray:
 
 
 def shard_requests(
-    spn: PopulationSPN, genomes: torch.Tensor, seeds: int | np.ndarray, parts: int, capacity: int, holders: str
-) -> list[tuple[int, int, int, np.ndarray, np.ndarray]]:
+    spn: PopulationSPN,
+    genomes: torch.Tensor,
+    seeds: int | np.ndarray,
+    parts: int,
+    capacity: int,
+    holders: str,
+    norm: Norm | None = None,
+) -> list[tuple[int, int, int, np.ndarray, np.ndarray, ShardNorm]]:
     """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, their env
-    seeds) for every non-empty shard; ValueError naming ``holders`` past ``capacity``."""
+    seeds, their observation normalisation or None) for every non-empty shard; ValueError naming ``holders``
+    past ``capacity``."""
     count = genomes.shape[0]
     if not 0 < count <= capacity:
         raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
     payload, seeds = encode_genomes(spn, genomes), slot_seeds(seeds, count)
+    rows = None if norm is None else [t.to(torch.float32).expand(count, -1).contiguous().numpy() for t in norm]
+
+    def part(start: int, stop: int) -> ShardNorm:
+        return None if rows is None else (rows[0][start:stop], rows[1][start:stop])
+
     bounds = enumerate(shard_bounds(count, parts))
-    return [(i, start, stop, payload[start:stop], seeds[start:stop]) for i, (start, stop) in bounds if stop > start]
+    return [
+        (i, start, stop, payload[start:stop], seeds[start:stop], part(start, stop))
+        for i, (start, stop) in bounds
+        if stop > start
+    ]
 
 
 def decode_genomes(payload: np.ndarray, genome_kind: str, genome_size: int) -> torch.Tensor:
@@ -71,14 +90,13 @@ def without_genomes(spn: PopulationSPN) -> PopulationSPN:
     """What a worker receives once: the SPN with its fixed weights only (the effective weights of an
     earlier genome set would only add bytes)."""
     bare = copy.copy(spn)
-    bare.w1_eff = bare.w2_eff = None
+    bare.w1_eff = bare.w2_eff = bare.obs_norm = None
     return bare
 
 
 def merge(parts: list[Results]) -> Episodes:
     """The episodes of the whole genome set from its shards' results, in shard order."""
-    returns, steps, spikes = (torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts))
-    return Episodes(returns, steps, spikes)
+    return Episodes(*(torch.from_numpy(np.concatenate(arrays)) for arrays in zip(*parts)))
 
 
 class ShardWorker:
@@ -95,9 +113,11 @@ class ShardWorker:
     def ready(self) -> int:
         return self.evaluator.size
 
-    def evaluate(self, payload: np.ndarray, seeds: np.ndarray) -> Results:
-        episodes = self.evaluator(decode_genomes(payload, self.genome_kind, self.genome_size), seeds)
-        return episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+    def evaluate(self, payload: np.ndarray, seeds: np.ndarray, norm: ShardNorm = None) -> Results:
+        genomes = decode_genomes(payload, self.genome_kind, self.genome_size)
+        episodes = self.evaluator(genomes, seeds, None if norm is None else tuple(map(torch.from_numpy, norm)))
+        results = episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
+        return results if norm is None else results + tuple(t.numpy() for t in episodes.moments)
 
     def peak_memory_mb(self) -> float:
         """This process's peak resident memory."""

@@ -10,6 +10,7 @@ from torch import nn
 from spn_torchrl.config import SNNConfig
 from spn_torchrl.envs import TaskSpec
 from spn_torchrl.snn import neurons
+from spn_torchrl.snn.observations import Norm, normalize
 
 GENOME_KINDS = ("connections", "weights")
 
@@ -35,8 +36,9 @@ class PopulationSPN(nn.Module):
 
     ``genome_kind="connections"``: genes are connection scores, a synapse exists where
     ``sigmoid(score) >= snn.score_threshold``, and its weight is the fixed one. ``"weights"``: genes are the
-    weights themselves (no mask). Call :meth:`set_genomes` once per genome set; :meth:`forward` maps
-    observations [P, n] to actions ([P, m] clipped, or [P] indices when ``discrete``) and the hidden
+    weights themselves (no mask). Call :meth:`set_genomes` once per genome set (and
+    :meth:`set_observation_norm` where observations are normalised); :meth:`forward` maps observations [P, n]
+    to actions ([P, m] clipped, or [P] indices when ``discrete``) and the hidden
     spike count [P] of that environment step.
     """
 
@@ -70,6 +72,7 @@ class PopulationSPN(nn.Module):
         self.time_steps, self.decay, self.v_th = snn.time_steps, snn.decay, snn.v_threshold
         self.w1_eff: torch.Tensor | None = None
         self.w2_eff: torch.Tensor | None = None
+        self.obs_norm: Norm | None = None  # (mean, inv_std) [P or 1, n] applied to observations, or None
         # the hidden layer's spikes from thresholds on its current (neurons.threshold_spikes): derived, not saved
         thresholds = neurons.spike_thresholds(self.time_steps, self.decay, self.v_th)
         self.register_buffer("spike_thresholds", thresholds, persistent=False)
@@ -99,10 +102,15 @@ class PopulationSPN(nn.Module):
         # input-major [P, n, h] and [P, h, m], the layout neurons.spn_dynamics multiplies fastest
         self.w1_eff, self.w2_eff = w1.transpose(1, 2).contiguous(), w2.transpose(1, 2).contiguous()
 
+    def set_observation_norm(self, norm: Norm | None) -> None:
+        """The normalisation ``(x - mean) * inv_std`` of every later forward call (each [P, n] or [1, n]), or
+        None for raw observations."""
+        self.obs_norm = None if norm is None else tuple(t.to(self.w1.device, torch.float32) for t in norm)
+
     def forward(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self.w1_eff is None:
             raise RuntimeError("PopulationSPN.set_genomes(genomes) must be called before the forward pass")
-        obs = observation.to(self.w1_eff.dtype)
+        obs = normalize(observation.to(self.w1_eff.dtype), self.obs_norm)
         if obs.shape[0] != self.w1_eff.shape[0]:
             raise ValueError(f"observation batch {obs.shape[0]} != number of genomes {self.w1_eff.shape[0]}")
         out, spikes = neurons.spn_dynamics(

@@ -11,12 +11,14 @@ from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, from_saved
 from spn_torchrl.envs import TaskSpec, task_spec
 from spn_torchrl.errors import CheckpointError, SpnError
+from spn_torchrl.snn.observations import Norm
 from spn_torchrl.snn.policies import PopulationSPN, spn_from_config
 
 
 @dataclass
 class Elite:
-    """One generation's elite of a run, with the SPN (population of one) already set to it."""
+    """One generation's elite of a run, with the SPN (population of one) already set to it and to the
+    observation normalisation its re-evaluation used (``obs_norm``, [1, n] each; None: raw observations)."""
 
     run_dir: Path
     cfg: RunConfig
@@ -27,6 +29,7 @@ class Elite:
     generations: int
     elites: torch.Tensor
     state: dict
+    obs_norm: Norm | None = None
 
     @property
     def masks(self) -> tuple[torch.Tensor, torch.Tensor]:
@@ -61,4 +64,7 @@ def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
     spn = spn_from_config(cfg.algo.snn, cfg.algo.genome, spec, state["w1"], state["w2"])
     genome = elites[generation - 1]
     spn.set_genomes(genome[None])
-    return Elite(run_dir, cfg, spec, spn, genome, generation, count, elites, state)
+    norms = state.get("elite_norms")  # [2, G, n] where the run normalised observations
+    norm = None if norms is None else (norms[0, generation - 1][None], norms[1, generation - 1][None])
+    spn.set_observation_norm(norm)
+    return Elite(run_dir, cfg, spec, spn, genome, generation, count, elites, state, norm)

@@ -17,6 +17,11 @@ the reset of a spike at the next step (``v = g v (1 - s_prev) + I``); resetting 
 as NIR's LIF does, gives the same spikes and potentials. Within one simulation step the graph is evaluated in
 topological order (the LI layer sees the hidden spikes of the same step; no synaptic delay).
 
+A run with ``normalize_observations=true`` normalises what the SPN sees with the running statistics its elite
+was re-evaluated with: the graph then starts ``input -> obs_shift -> obs_scale -> linear_1``, an ``Affine``
+(identity weight, bias ``-mean``) and a ``Scale`` (``inv_std``), float32, which compute the SPN's
+``(x - mean) * inv_std`` bit for bit (``metadata["observation_normalization"]``).
+
 What NIR does not express, stored in the graph's metadata: every environment step starts from zero state, the
 observation is presented as a constant input for ``time_steps`` (T' = 4) simulation steps, and the readout is
 the max over those T' steps of the LI potentials (``readout = "max_over_time"``), then ``argmax`` (discrete
@@ -99,6 +104,13 @@ def to_nir(elite: Elite, dt: float = DT, fold_r: bool = False):
         "output": nir.Output(output_type={"output": np.array([m])}),
     }
     edges = [("input", "linear_1"), ("linear_1", "lif"), ("lif", "linear_2"), ("linear_2", "li"), ("li", "output")]
+    metadata["observation_normalization"] = "none"
+    if elite.obs_norm is not None:
+        mean, inv_std = (t[0].detach().numpy().astype(np.float32) for t in elite.obs_norm)
+        nodes["obs_shift"] = nir.Affine(weight=np.eye(spec.n_obs, dtype=np.float32), bias=-mean)
+        nodes["obs_scale"] = nir.Scale(scale=inv_std)
+        edges[0:1] = [("input", "obs_shift"), ("obs_shift", "obs_scale"), ("obs_scale", "linear_1")]
+        metadata["observation_normalization"] = "(x - mean) * inv_std: obs_shift (bias -mean), obs_scale (inv_std)"
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata=metadata)
 
 

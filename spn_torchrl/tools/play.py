@@ -26,6 +26,7 @@ from spn_torchrl.envs import make_batched_env
 from spn_torchrl.errors import SpnError, require
 from spn_torchrl.evaluation.rollout import Episodes, PopulationEvaluator, spike_rate
 from spn_torchrl.snn import neurons
+from spn_torchrl.snn.observations import normalize
 from spn_torchrl.snn.policies import mask_density
 from spn_torchrl.tools.elite import Elite, load_elite
 
@@ -36,7 +37,7 @@ GL_BACKENDS = ("egl", "osmesa")
 class Trace:
     """One episode of a single env, step by step."""
 
-    observations: torch.Tensor  # [S, n], what the SPN saw
+    observations: torch.Tensor  # [S, n], the env's observations (the SPN saw them normalised where the run did)
     actions: torch.Tensor  # [S, m] or [S]
     spikes: torch.Tensor  # [S, T', h] hidden spikes of every simulation step
     episode_return: float
@@ -44,11 +45,12 @@ class Trace:
 
 
 def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
-    """``episodes`` episodes of the elite (one batched env, the elite repeated), seeded by ``seed``."""
+    """``episodes`` episodes of the elite (one batched env, the elite repeated, with its observation
+    normalisation), seeded by ``seed``."""
     env = make_batched_env(elite.spec.env_id, episodes, backend=elite.cfg.env.backend, threads=elite.cfg.env.threads)
     evaluator = PopulationEvaluator(env, elite.spn, elite.spec.max_episode_steps)
     try:
-        return evaluator(elite.genome[None].expand(episodes, -1), seed)
+        return evaluator(elite.genome[None].expand(episodes, -1), seed, elite.obs_norm)
     finally:
         evaluator.close()
 
@@ -56,7 +58,8 @@ def replay(elite: Elite, episodes: int, seed: int) -> Episodes:
 def hidden_spike_train(elite: Elite, observation: torch.Tensor) -> torch.Tensor:
     """Hidden spikes [T', h] of one environment step (the LIF part of :func:`neurons.spn_dynamics`)."""
     snn = elite.cfg.algo.snn
-    return neurons.lif_spikes(elite.weights[0] @ observation, snn.time_steps, snn.decay, snn.v_threshold)
+    seen = normalize(observation[None], elite.obs_norm)[0]
+    return neurons.lif_spikes(elite.weights[0] @ seen, snn.time_steps, snn.decay, snn.v_threshold)
 
 
 def make_render_env(env_id: str) -> gym.Env:
@@ -72,6 +75,7 @@ def run_episode(elite: Elite, seed: int, render: bool = False, max_steps: int | 
     """One episode (cut at ``max_steps`` if given) on a plain Gymnasium env, recording observations, actions,
     hidden spikes (and frames)."""
     elite.spn.set_genomes(elite.genome[None])
+    elite.spn.set_observation_norm(elite.obs_norm)
     env = make_render_env(elite.spec.env_id) if render else gym.make(elite.spec.env_id)
     observations, actions, spikes, frames = [], [], [], []
     total = 0.0

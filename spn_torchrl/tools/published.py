@@ -21,6 +21,7 @@ import torch
 
 from spn_torchrl.envs import make_batched_env, task_spec
 from spn_torchrl.envs.cartpole import ENV_ID as CARTPOLE_ID
+from spn_torchrl.envs.gym_v2 import V2_TASKS
 from spn_torchrl.envs.mujoco import BATCH_TASKS
 from spn_torchrl.errors import SpnError
 from spn_torchrl.evaluation.rollout import PopulationEvaluator
@@ -39,7 +40,10 @@ def genome_kind_of(path: str | Path) -> str:
 
 
 def default_backend(env_id: str) -> str:
-    """The project's batched backend of a task: mujoco_batch for the MuJoCo v5 tasks, cartpole_batch for CartPole."""
+    """The project's batched backend of a task: mujoco_batch for the MuJoCo v5 tasks, gym_v2 for the v2 ones,
+    cartpole_batch for CartPole."""
+    if env_id in V2_TASKS:
+        return "gym_v2"
     if env_id in BATCH_TASKS:
         return "mujoco_batch"
     return "cartpole_batch" if env_id == CARTPOLE_ID else "gymnasium"

@@ -1,8 +1,13 @@
-"""The paper's genetic algorithm as pure tensor operations on genomes and fitnesses (no env)."""
+"""The paper's genetic algorithm as pure tensor operations on genomes and fitnesses (no env), and its step of the
+evolution loop."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
+
+from spn_torchrl.config import GAConfig
 
 
 def mirrored(center: torch.Tensor, sigma: float, generator: torch.Generator) -> torch.Tensor:
@@ -68,3 +73,33 @@ def pick_elite(candidates: torch.Tensor, episode_returns: torch.Tensor) -> tuple
     means = episode_returns.mean(dim=1)
     best = int(torch.argmax(means))
     return int(candidates[best]), float(means[best])
+
+
+class GAStep:
+    """The GA side of the evolution loop (:mod:`spn_torchrl.training.evolve`): its elite candidates are the
+    ``elite_candidates`` best individuals; its step is :func:`next_generation`."""
+
+    elite_from_population = True
+
+    def __init__(self, algo: GAConfig, state: dict[str, Any]) -> None:
+        self.algo = algo
+
+    def elite_pool(self, population: torch.Tensor, fitness: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The genomes the elite is picked from and the candidates' indices: the population and its best k."""
+        return population, elite_candidates(fitness, self.algo.elite_candidates)
+
+    def advance(self, population: torch.Tensor, fitness: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """The next generation."""
+        algo = self.algo
+        return next_generation(
+            population,
+            fitness,
+            sigma=algo.sigma,
+            truncation=algo.truncation,
+            generator=generator,
+            elitism=algo.elitism,
+        )
+
+    def state(self) -> dict[str, Any]:
+        """The GA keeps no state beyond the population and the generator."""
+        return {}

@@ -3,6 +3,11 @@
 Follows the paper's appendix (Spinning Up's PPO): one env, ``frames_per_batch`` steps per iteration from a
 reset (Spinning Up resets at every epoch end, which also makes a resumed run exact), advantages computed once
 per iteration, ``epochs`` passes over minibatches, one Adam with a learning rate per network.
+
+With ``normalize_observations`` the actor's and the critic's networks start with an
+:class:`~spn_torchrl.snn.observations.ObservationNormalizer`: an iteration collects and trains with the running
+statistics as they stood before it, which are then updated from the observations it collected (as a GA or EC
+generation's); the checkpoint keeps the statistics (``obs_stats``) and the networks' buffers.
 """
 
 from __future__ import annotations
@@ -28,9 +33,10 @@ from torchrl.objectives.value import GAE
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig
 from spn_torchrl.envs import TaskSpec, make_transformed_env, task_spec
-from spn_torchrl.errors import ConfigError
 from spn_torchrl.lifecycle import Run, open_run
 from spn_torchrl.seeds import COLLECTION, EVALUATION, episode_seed
+from spn_torchrl.snn import observations
+from spn_torchrl.snn.observations import ObservationNormalizer
 from spn_torchrl.snn.policies import TrainableSPN, init_fixed_weights, mask_density, spn_from_config
 from spn_torchrl.snn.surrogate import surrogate_spike
 
@@ -76,10 +82,16 @@ def spn_net(cfg: RunConfig, spec: TaskSpec) -> TrainableSPN:
     return TrainableSPN(spn, scores, surrogate_spike(algo.surrogate, algo.surrogate_alpha))
 
 
+def normalized(net: nn.Module, size: int, normalize: bool) -> nn.Module:
+    """``net`` behind an observation normaliser of ``size`` observations where ``normalize``, else ``net``."""
+    return nn.Sequential(ObservationNormalizer(size), net) if normalize else net
+
+
 def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticActor:
     """The stochastic policy: Gaussian (state-independent log-std) around the net's output, or Categorical."""
     algo = cfg.algo
     net = spn_net(cfg, spec) if algo.policy == "spn" else dpn(spec.n_obs, spec.n_act, algo.hidden, spec.discrete)
+    net = normalized(net, spec.n_obs, cfg.normalize_observations)
     action_spec = env.full_action_spec_unbatched
     if spec.discrete:
         module = Keyed(net, in_keys=["observation"], out_keys=["logits"])
@@ -103,10 +115,19 @@ def make_actor(cfg: RunConfig, spec: TaskSpec, env: EnvBase) -> ProbabilisticAct
     )
 
 
-def make_critic(spec: TaskSpec, hidden: int) -> Keyed:
-    """The paper's value net: n -> hidden ReLU -> 1, as TorchRL's value operator (observation -> state_value)."""
+def make_critic(spec: TaskSpec, hidden: int, normalize: bool = False) -> Keyed:
+    """The paper's value net: n -> hidden ReLU -> 1, as TorchRL's value operator (observation -> state_value);
+    ``normalize``: behind an observation normaliser."""
     net = nn.Sequential(nn.Linear(spec.n_obs, hidden), nn.ReLU(), nn.Linear(hidden, 1))
-    return Keyed(net, in_keys=["observation"], out_keys=["state_value"])
+    return Keyed(normalized(net, spec.n_obs, normalize), in_keys=["observation"], out_keys=["state_value"])
+
+
+def set_norm(norm: observations.Norm, *modules: nn.Module) -> None:
+    """Give every observation normaliser in ``modules`` the normalisation ``norm``."""
+    for module in modules:
+        for part in module.modules():
+            if isinstance(part, ObservationNormalizer):
+                part.set(norm)
 
 
 def evaluate_policy(actor: ProbabilisticActor, env: EnvBase, max_steps: int, seed: int) -> tuple[torch.Tensor, int]:
@@ -152,12 +173,7 @@ def train_ppo(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     spec = task_spec(cfg.env.id)
     iterations = cfg.algo.total_env_steps // cfg.algo.frames_per_batch
     with open_run(cfg, run_dir, run_name, "ppo", run_meta(cfg, spec), iterations) as run:
-        done = 0 if run.state is None else run.state["iteration"]
-        if iterations < done:
-            raise ConfigError(
-                f"algo.total_env_steps={cfg.algo.total_env_steps} is below the {done * cfg.algo.frames_per_batch} "
-                f"env steps {run_dir} has done"
-            )
+        done = 0 if run.state is None else run.state["iteration"]  # at most iterations: open_run refuses fewer
         if done == iterations:
             log.info("%s already ran its %d iterations", run_dir, iterations)
             return run.rows[-1] if run.rows else {}
@@ -173,7 +189,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     env = make_transformed_env(spec.env_id, 1, backend=cfg.env.backend)
     eval_env = make_transformed_env(spec.env_id, algo.eval_episodes, backend=cfg.env.backend)
     actor = make_actor(cfg, spec, env)
-    critic = make_critic(spec, algo.hidden)
+    critic = make_critic(spec, algo.hidden, cfg.normalize_observations)
     loss_module = ClipPPOLoss(
         actor,
         critic,
@@ -188,8 +204,11 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     optim = torch.optim.Adam(
         [{"params": actor.parameters(), "lr": algo.lr_policy}, {"params": critic.parameters(), "lr": algo.lr_value}]
     )
+    params = [*actor.parameters(), *critic.parameters()]
+    lrs = f"algo.lr_policy={algo.lr_policy:g}, algo.lr_value={algo.lr_value:g}"
     counts = Counts()
     wall = 0.0
+    stats = observations.initial_stats(spec.n_obs) if cfg.normalize_observations else None
     if run.state is not None:
         state = run.state
         actor.load_state_dict(state["actor"])
@@ -198,6 +217,9 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
         counts.values.update(state["counts"])
         wall = state["wall_time_s"]
         torch.set_rng_state(state["torch_rng"])
+        stats = state.get("obs_stats")
+    if stats is not None:
+        set_norm(observations.policy_norm(stats), actor, critic)
 
     next_iteration = [start + 1]
 
@@ -238,15 +260,20 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                     batch = buffer.sample()
                     loss = loss_module(batch)
                     total = loss["loss_objective"] + loss["loss_critic"]
+                    run.require_finite("the PPO loss", total.detach(), f"iteration {iteration}")
                     optim.zero_grad()
                     total.backward()
                     optim.step()
+                    run.require_finite(f"a network parameter ({lrs})", params, f"iteration {iteration}")
                     n = batch.numel()
                     counts.add(policy_forward=n, policy_backward=n, value_forward=n, value_backward=n)
                     for key in sums:
                         if key in loss.keys():
                             sums[key] += float(loss[key].detach())
                     updates += 1
+            if stats is not None:  # the next iteration's policy sees the statistics of every observation so far
+                stats = observations.update(stats, observations.moments(data["observation"]))
+                set_norm(observations.policy_norm(stats), actor, critic)
             collector.update_policy_weights_()
             done = data["next", "done"].squeeze(-1)
             finished = data["next", "episode_reward"].squeeze(-1)[done]
@@ -257,6 +284,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                 )
                 counts.add(eval_policy_forward=samples)
                 eval_return = float(returns.mean())
+                run.require_finite("the evaluation return", eval_return, f"iteration {iteration}")
             t1 = time.perf_counter()
             seconds, t0 = t1 - t0, t1
             wall += seconds
@@ -283,6 +311,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
                     "torch_rng": torch.get_rng_state(),
                     "counts": dict(counts.values),
                     "wall_time_s": wall,
+                    **({} if stats is None else {"obs_stats": stats}),
                 }
             )
             next_iteration[0] = iteration + 1

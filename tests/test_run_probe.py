@@ -1,0 +1,170 @@
+"""The run contract under the probe of issue 44: one live run per directory, a refused run leaves the directory's
+record as it was, a non-finite value ends the run in one sentence, the saved config is the resolved one (each case a
+subprocess run of train.py with real processes, signals and files)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from conftest import ROOT, run_train, train_command
+
+from spn_torchrl import checkpoint
+from spn_torchrl.records import read_progress
+
+pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
+
+ONE = ["evaluator.processes=1", "torch_threads=1"]
+BASE = ["env=cartpole", "algo.population=20", "algo.elite_candidates=2", "algo.elite_episodes=2", "seed=1", *ONE]
+LONG = ["env=cartpole", "algo.generations=200", "algo.population=200", "algo.elite_candidates=2", "seed=1", *ONE]
+PPO = ["algo=dpn_ppo", "algo.frames_per_batch=200", "algo.minibatch_size=50", "algo.epochs=2", "algo.eval_episodes=2"]
+
+
+def last_line(proc: subprocess.CompletedProcess) -> str:
+    return proc.stderr.strip().splitlines()[-1]
+
+
+def record(run_dir: Path) -> dict[str, bytes]:
+    """The bytes of every file of a run directory's config record and progress."""
+    names = [".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml", "progress.csv"]
+    return {name: (run_dir / name).read_bytes() for name in names if (run_dir / name).exists()}
+
+
+def start_live(run_dir: Path, *overrides: str) -> subprocess.Popen:
+    """A long run in ``run_dir``, returned once its first checkpoint is on disk."""
+    proc = subprocess.Popen(
+        train_command(run_dir, *LONG, *overrides), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    deadline = time.time() + 120
+    while not (run_dir / "checkpoint.pt").exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.stderr.read().decode()
+    return proc
+
+
+def test_a_directory_belongs_to_one_live_run_and_a_killed_run_leaves_no_stuck_lock(tmp_path):
+    live = start_live(tmp_path)
+    try:
+        before = record(tmp_path)
+        for second in (["seed=2", "algo.generations=20"], ["resume=true"], []):
+            proc = run_train(tmp_path, *LONG, *second, check=False)
+            assert proc.returncode == 1 and "Traceback" not in proc.stderr
+            assert last_line(proc) == (
+                f"error: {tmp_path} is in use by a live run (process {live.pid}): "
+                "wait for it to end, or use a new run directory"
+            )
+            assert record(tmp_path)[".hydra/config.yaml"] == before[".hydra/config.yaml"]
+        assert yaml.safe_load((tmp_path / ".hydra/config.yaml").read_text())["seed"] == 1
+    finally:
+        live.send_signal(signal.SIGKILL)
+        live.communicate(timeout=60)
+    state = checkpoint.load(tmp_path)
+    assert state["config"]["seed"] == 1
+    # the kernel released the killed run's lock: the next run reaches the config contract
+    proc = run_train(tmp_path, *LONG, "seed=2", "resume=true", check=False)
+    assert last_line(proc).startswith(f"error: resume=true with a config that would change the results of {tmp_path}")
+
+
+def test_two_identical_runs_do_not_log_every_row_twice(tmp_path):
+    live = start_live(tmp_path)
+    try:
+        proc = run_train(tmp_path, *LONG, check=False)
+        assert "is in use by a live run" in last_line(proc)
+    finally:
+        live.send_signal(signal.SIGTERM)
+        live.communicate(timeout=60)
+    assert live.returncode == 143
+    run_train(tmp_path, *LONG[:1], "algo.generations=3", *LONG[2:], "resume=false", check=False)
+    for path in tmp_path.glob("logs/*/scalars/**/*.csv"):
+        steps = [line.split(",")[0] for line in path.read_text().splitlines()]
+        assert len(steps) == len(set(steps)), path
+
+
+@pytest.mark.parametrize(
+    "second",
+    [
+        ["algo.generations=2", "seed=3"],  # a new run into a directory that holds one
+        ["algo.generations=2", "seed=3", "resume=true"],  # a resume that would change the results
+        ["algo.generations=1", "resume=true"],  # a shrinking resume
+    ],
+)
+def test_a_refused_run_leaves_the_directorys_record_as_it_was(tmp_path, second):
+    run_train(tmp_path, *BASE, "algo.generations=2")
+    before = record(tmp_path)
+    assert set(before) == {".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml", "progress.csv"}
+    proc = run_train(tmp_path, *BASE, *second, check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr and last_line(proc).startswith("error: ")
+    assert record(tmp_path) == before
+
+
+def test_a_users_directory_without_a_checkpoint_keeps_its_files(tmp_path):
+    (tmp_path / ".hydra").mkdir(parents=True)
+    (tmp_path / ".hydra/config.yaml").write_text("mine: true\n")
+    (tmp_path / "progress.csv").write_text("generation,eval_return\n1,5.0\n")
+    before = record(tmp_path)
+    proc = run_train(tmp_path, *BASE, "algo.generations=1", check=False)
+    assert "holds progress.csv but no checkpoint.pt" in last_line(proc)
+    assert record(tmp_path) == before and not (tmp_path / ".hydra/overrides.yaml").exists()
+
+
+def test_a_multirun_subdirectory_two_jobs_share_keeps_the_first_jobs_record(tmp_path):
+    env = {**os.environ, "WANDB_MODE": "offline"}
+    command = [sys.executable, str(ROOT / "train.py"), "-m", f"hydra.sweep.dir={tmp_path}", *BASE]
+    subprocess.run([*command, "algo.generations=1,2"], cwd=ROOT, env=env, capture_output=True, timeout=600)
+    (job,) = [p.parent for p in tmp_path.glob("*/progress.csv")]
+    saved = yaml.safe_load((job / ".hydra/config.yaml").read_text())
+    assert saved["algo"]["generations"] == 1 and len(read_progress(job / "progress.csv")) == 1
+    assert "algo.generations=1" in (job / ".hydra/overrides.yaml").read_text()
+
+
+def test_the_saved_config_is_the_resolved_one(tmp_path, monkeypatch):
+    monkeypatch.setenv("MYSEED", "4")
+    run_train(tmp_path, *BASE, "algo.generations=1", "seed=${oc.env:MYSEED}")
+    saved = yaml.safe_load((tmp_path / ".hydra/config.yaml").read_text())
+    assert saved["seed"] == 4 and "oc.env" not in (tmp_path / ".hydra/config.yaml").read_text()
+    assert checkpoint.load(tmp_path)["config"]["seed"] == 4
+
+
+def test_an_interpolation_of_the_wrong_type_is_one_sentence_that_hides_its_value(tmp_path, monkeypatch):
+    monkeypatch.setenv("MYSECRET", "s3cr3t-value")
+    proc = run_train(tmp_path, *BASE, "algo.generations=1", "seed=${oc.env:MYSECRET}", check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr and "s3cr3t" not in proc.stderr + proc.stdout
+    assert last_line(proc).startswith("error: seed: ")
+
+
+@pytest.mark.parametrize("override", ["env.name=../../escaped", "run_name=a/b", "algo.name=.."])
+def test_a_name_that_would_leave_the_run_directory_is_refused(tmp_path, override):
+    run_dir = tmp_path / "a" / "b"
+    proc = run_train(run_dir, *BASE, "algo.generations=1", override, check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    field = override.split("=")[0]
+    assert last_line(proc).startswith(f"error: {field} must be a file name of letters, digits")
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) in ([], ["train.log"])
+
+
+@pytest.mark.parametrize(
+    "method,what,sentence",
+    [
+        (
+            ["algo=weights_ga", *BASE, "algo.generations=2", "algo.sigma=1e300"],
+            "a genome of the population (algo.sigma=1e+300)",
+            "generation 1: the run stopped there; no checkpoint was written",
+        ),
+        (
+            [*PPO, "env=cartpole", "algo.total_env_steps=1000", "algo.lr_policy=1e30"],
+            "the PPO loss",
+            "iteration 1: the run stopped there; no checkpoint was written",
+        ),
+    ],
+)
+def test_a_non_finite_value_ends_the_run_in_one_sentence(tmp_path, method, what, sentence):
+    proc = run_train(tmp_path, *method, check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert last_line(proc) == f"error: {what} became NaN or infinite in {sentence}"
+    assert not (tmp_path / "progress.csv").exists()
