@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,8 @@ except ImportError:
     SubmititSlurmLauncher = None
 
 log = logging.getLogger(__name__)
+# the states of a job Slurm has not ended yet (submitit's list, but for UNKNOWN: what sacct says without accounting)
+RUNNING = ("READY", "PENDING", "RUNNING", "REQUEUED", "COMPLETING", "PREEMPTED")
 
 
 def last_error_line(stderr: str | None) -> str:
@@ -34,24 +37,44 @@ def last_error_line(stderr: str | None) -> str:
     return (own or lines or ["no error output"])[-1]
 
 
-def job_sentence(job: Any, overrides: Sequence[str]) -> str:
+def final_state(job: Any, wait_s: float = 60.0) -> str:
+    """The job's state once Slurm has recorded its end (``CANCELLED``, without ``by <uid>``); ``UNKNOWN`` without
+    accounting. Its result file can appear before sacct stops reporting it RUNNING, hence the poll."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        state = job.watcher.get_state(job.job_id, mode="force").split()[0].upper()
+        if state not in RUNNING or time.monotonic() > deadline:
+            return state
+        time.sleep(1)
+
+
+def job_sentence(job: Any, overrides: Sequence[str], state: str) -> str:
     """One sentence on a job that did not complete: id, overrides, Slurm state, its own error line, its log."""
     return (
-        f"job {job.job_id} ({' '.join(filter_overrides(overrides))}) ended {job.state}: "
+        f"job {job.job_id} ({' '.join(filter_overrides(overrides))}) ended {state}: "
         f"{last_error_line(job.stderr())} (log: {job.paths.stderr})"
     )
 
 
 def results(jobs: Sequence[Any], job_overrides: Sequence[Sequence[str]]) -> list[JobReturn]:
     """The jobs' returns once all have ended; SystemExit with one sentence naming every job that did not complete
-    (it passes Hydra's error report, which would add a hint line after the sentence)."""
+    (it passes Hydra's error report, which would add a hint line after the sentence).
+
+    A job did not complete when submitit has no result for it or Slurm records another end than COMPLETED: a job
+    cancelled with ``scancel`` stops on SIGTERM, saves its checkpoint and returns, so submitit holds its result.
+    Without accounting every state reads UNKNOWN and only submitit's result counts."""
     returns, failed = [], []
     for job, overrides in zip(jobs, job_overrides):
         job.wait()
+        state = final_state(job)
         try:
-            returns.append(job.results()[0])
+            result = job.results()[0]
         except Exception:  # submitit's UncompletedJobError / FailedJobError: the job's own line says why
-            failed.append(job_sentence(job, overrides))
+            result = None
+        if result is None or state not in ("COMPLETED", "UNKNOWN"):
+            failed.append(job_sentence(job, overrides, state))
+        else:
+            returns.append(result)
     if failed:
         raise SystemExit(f"error: {len(failed)} of {len(jobs)} Slurm jobs did not complete: {'; '.join(failed)}")
     return returns
