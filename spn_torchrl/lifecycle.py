@@ -365,8 +365,9 @@ def signals_interrupt() -> Iterator[None]:
 def resume_hint(run_dir: Path) -> str:
     """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
     overrides: list[str] = []
+    script = Path(sys.argv[0]).name or "train.py"
     with contextlib.suppress(Exception):
-        overrides = [o for o in _hydra_config().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
-    return " ".join(
-        ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}", "resume=true"]
-    )
+        hydra = _hydra_config()
+        overrides = [o for o in hydra.overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
+        script = f"{hydra.job.name}.py"  # the script's name, also in a Slurm job (whose argv[0] is submitit's)
+    return " ".join(["python", script, *overrides, f"hydra.run.dir={run_dir}", "resume=true"])

@@ -62,7 +62,7 @@ def states(job_ids: list[str]) -> dict[str, str]:
 
 
 def submitted(output: str) -> list[str]:
-    return re.findall(r"job (\d+_\d+) submitted", output)
+    return re.findall(r"job (\d+(?:_\d+)?) submitted", output)  # an array's jobs are <id>_<index>, one job <id>
 
 
 def recorded(run_dir: Path) -> bool:
@@ -113,7 +113,8 @@ def test_failed_and_cancelled_jobs_are_one_sentence_and_resume_finishes_the_run(
     last = err.strip().splitlines()[-1]
     print("the sweep's last line:", last)
     assert last.startswith("error: 2 of 2 Slurm jobs did not complete: ")
-    assert f"job {cancel} (" in last and "ended CANCELLED" in last and "stopped: " in last
+    assert f"job {cancel} (" in last and "ended CANCELLED" in last and "stopped: interrupted by SIGTERM" in last
+    assert "resume with: python train.py " in last
     assert f"job {jobs[1]} (" in last and "ended FAILED" in last
     assert "algo.elite_episodes must be an integer in [1, 5], got 0" in last
     # W&B's service got the SIGTERM too and dropped the run: the job says so and still ends with its own sentence
@@ -123,5 +124,7 @@ def test_failed_and_cancelled_jobs_are_one_sentence_and_resume_finishes_the_run(
 
     done = sweep(sweep_dir, "seed=0", "logger=wandb", "logger.mode=offline", "algo.elite_episodes=5", "resume=true")
     assert done.returncode == 0, done.stderr[-3000:]
-    print("slurm resume:", states(submitted(done.stderr + done.stdout)))
+    (resumed,) = submitted(done.stderr + done.stdout)
+    print("slurm resume:", states([resumed]))
+    assert states([resumed]) == {resumed: "COMPLETED"}
     assert rows(run_dir) == rows(two_seeds / "cartpole__conn_ga__0")
