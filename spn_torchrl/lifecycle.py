@@ -37,6 +37,7 @@ from spn_torchrl.records import (
     trim_csv_logs,
     write_atomic,
 )
+from spn_torchrl.terminal import Show, progress_bar
 
 log = logging.getLogger("spn_torchrl")
 
@@ -48,6 +49,7 @@ ADDED = {"normalize_observations": False}
 # the budget of each kind of run: a resume may raise it (to at least what is done), and the extended run writes the
 # rows an uninterrupted run of the new budget writes
 BUDGET = {"ga": "algo.generations", "ec": "algo.generations", "ppo": "algo.total_env_steps"}
+UNIT = {"ga": "gen", "ec": "gen", "ppo": "iter"}  # what the terminal's progress bar counts
 PROGRESS_NAME = "progress.csv"
 COMMIT_NAME = "COMMIT"
 LOCK_NAME = ".lock"
@@ -100,17 +102,19 @@ class Run:
     logger: Any = None
     wandb_id: str | None = None
     progress: Progress | None = None
+    show: Show = lambda step, row: None  # the terminal's progress bar (a no-op off a terminal)
     saved: str | None = None  # the last checkpoint written or resumed: "generation 3", "iteration 2"
 
     def record(self, row: Mapping[str, Any], step: int, prefix: Mapping[str, str] | None = None) -> None:
-        """Add a row and log it (metrics under ``train/``, or the prefix a column names); progress.csv gets it with
-        the next checkpoint, so the file never holds a row the checkpoint lacks."""
+        """Add a row, log it (metrics under ``train/``, or the prefix a column names) and show it on the progress
+        bar; progress.csv gets it with the next checkpoint, so the file never holds a row the checkpoint lacks."""
         with deferred_signals():
             self.rows.append(dict(row))
             if self.logger is not None:
                 prefix = prefix or {}
                 metrics = {f"{prefix.get(key, 'train')}/{key}": value for key, value in row.items()}
                 self.logger.log_metrics(metrics, step=step)
+        self.show(step, row)
 
     def save(self, state: Mapping[str, Any]) -> None:
         """Write the checkpoint (the loop's ``state`` with the run's meta, config, name, W&B id and rows), then
@@ -253,10 +257,10 @@ def run_lock(run_dir: Path) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str, Any]) -> Iterator[Run]:
-    """Open (or resume) the run in ``run_dir``; the logger is finished on the way out (a W&B run marked failed with
-    the exit code when the body raised or a signal stopped it), and the run's config and rows on disk are the
-    checkpoint's."""
+def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str, Any], total: int) -> Iterator[Run]:
+    """Open (or resume) the run in ``run_dir``, whose budget is ``total`` generations or iterations; the logger is
+    finished on the way out (a W&B run marked failed with the exit code when the body raised or a signal stopped
+    it), and the run's config and rows on disk are the checkpoint's. On a terminal a progress bar counts the rows."""
     state = _resume_state(cfg, run_dir, kind, meta)
     record_config(run_dir, cfg)
     record_commit(run_dir, resumed=state is not None, commit=source_commit())
@@ -273,7 +277,8 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
         run.logger = make_logger(cfg, run_dir, run.name, run.wandb_id)
         run.wandb_id = logger_run_id(run.logger)
         log.info("run %s in %s", run.name, run_dir)
-        yield run
+        with progress_bar(total, _last_step(run.rows), UNIT[kind]) as run.show:
+            yield run
         exit_code = 0
     except RunInterrupted as err:
         exit_code = 128 + err.signum
@@ -360,8 +365,9 @@ def signals_interrupt() -> Iterator[None]:
 def resume_hint(run_dir: Path) -> str:
     """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
     overrides: list[str] = []
+    script = Path(sys.argv[0]).name or "train.py"
     with contextlib.suppress(Exception):
-        overrides = [o for o in _hydra_config().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
-    return " ".join(
-        ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}", "resume=true"]
-    )
+        hydra = _hydra_config()
+        overrides = [o for o in hydra.overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
+        script = f"{hydra.job.name}.py"  # the script's name, also in a Slurm job (whose argv[0] is submitit's)
+    return " ".join(["python", script, *overrides, f"hydra.run.dir={run_dir}", "resume=true"])

@@ -261,11 +261,18 @@ def make_logger(cfg: RunConfig, run_dir: Path, run_name: str, run_id: str | None
 
 def close_logger(logger, exit_code: int = 0) -> None:
     """Finish the run's logger; the W&B run of a job that failed or was stopped is marked failed with the job's
-    exit code, not left running."""
+    exit code, not left running. A logger that cannot be closed then is logged, and the job's own error stands."""
     if logger is None:
         return
     from torchrl.record.loggers import WandbLogger
 
-    if exit_code and isinstance(logger, WandbLogger):
-        logger.experiment.finish(exit_code=exit_code)  # the close() below then finds the run finished
-    logger.close()
+    if not exit_code:
+        logger.close()
+        return
+    try:
+        if isinstance(logger, WandbLogger):
+            logger.experiment.finish(exit_code=exit_code)  # the close() below then finds the run finished
+        logger.close()
+    except Exception as err:  # the job's own error or signal is what the run ends with, not the logger's
+        # e.g. Slurm's scancel sends SIGTERM to every process of the job, W&B's service too, which then drops us
+        log.warning("the logger was not closed (exit code %d not recorded): %s: %s", exit_code, type(err).__name__, err)

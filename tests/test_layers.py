@@ -7,7 +7,7 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "spn_torchrl"
-BASE = {"errors", "config", "records", "checkpoint", "seeds", "lifecycle"}
+BASE = {"errors", "config", "records", "checkpoint", "seeds", "lifecycle", "terminal"}
 # rank of each room: a module may import its own rank or lower ones
 RANKS = {"base": 0, "snn": 1, "envs": 1, "evaluation": 2, "training": 3, "analysis": 4, "tools": 4, "face": 5}
 FACES = {"spn_torchrl", "spn_torchrl.run", "spn_torchrl.report", "spn_torchrl.play", "spn_torchrl.export"}

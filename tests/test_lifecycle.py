@@ -19,7 +19,7 @@ META = {"format": 1, "task": "test"}
 @pytest.mark.parametrize("when", ["pending before the row", "during the row"])
 def test_a_signal_between_a_row_and_its_checkpoint_leaves_both_holding_the_same_rows(tmp_path, make_config, when):
     cfg = make_config("env=cartpole", "logger=csv")
-    with pytest.raises(RunInterrupted), signals_interrupt(), open_run(cfg, tmp_path, "t", "ga", META) as run:
+    with pytest.raises(RunInterrupted), signals_interrupt(), open_run(cfg, tmp_path, "t", "ga", META, 2) as run:
         run.record({"generation": 1, "eval_return": 1.0}, step=1)
         run.save({"generation": 1})
         if when == "during the row":
@@ -42,7 +42,7 @@ def test_a_non_finite_value_names_the_last_finite_checkpoint(tmp_path, make_conf
     from spn_torchrl.errors import NonFiniteError
 
     cfg = make_config("env=cartpole", "logger.backend=none")
-    with pytest.raises(NonFiniteError) as err, open_run(cfg, tmp_path, "t", "ga", META) as run:
+    with pytest.raises(NonFiniteError) as err, open_run(cfg, tmp_path, "t", "ga", META, 2) as run:
         run.require_finite("an episode return", torch.tensor([1.0, 2.0]), "generation 1")
         run.record({"generation": 1, "eval_return": 1.0}, step=1)
         run.save({"generation": 1})

@@ -12,6 +12,7 @@ that ``mj_rnePostConstraint`` computes after every step, step one ``MjData`` per
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -39,6 +40,23 @@ from spn_torchrl.envs.mujoco_tasks import (
     com_parts,
 )
 from spn_torchrl.errors import ConfigError
+
+# Gymnasium's MuJoCo XMLs (half_cheetah.xml ...) set <compiler settotalmass=...>: MuJoCo 4 warns that the attribute is
+# deprecated and still applies it, so the compiled model (total mass included) is the one Gymnasium steps
+SETTOTALMASS = "compiler attribute 'settotalmass' is deprecated"
+mujoco_log = logging.getLogger("mujoco")
+
+
+def mujoco_warning(message: str) -> None:
+    """MuJoCo's warnings go to the ``mujoco`` logger (the run's log), not to the terminal and ``./MUJOCO_LOG.TXT``
+    (MuJoCo's own handler); the known ``settotalmass`` one, once per compiled model, at DEBUG."""
+    if message.startswith(SETTOTALMASS):
+        mujoco_log.debug(message)
+    else:
+        mujoco_log.warning(message)
+
+
+mujoco.set_mju_user_warning(mujoco_warning)  # process-wide: every process that imports spn_torchrl.envs
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,12 @@ What NIR does not express, stored in the graph's metadata: every environment ste
 observation is presented as a constant input for ``time_steps`` (T' = 4) simulation steps, and the readout is
 the max over those T' steps of the LI potentials (``readout = "max_over_time"``), then ``argmax`` (discrete
 actions) or clipping to ``action_low``/``action_high`` (continuous).
+
+``--fold-r`` writes the equivalent graph with ``r = 1`` and each Linear's weight scaled by the ``r`` of the neurons
+it feeds (``dt/tau * r * (W x) = dt/tau * ((r W) x)``), which consumers that ignore ``r`` (Norse 1.1, Sinabs) read
+correctly. It is an option, not the default: the default's weights are the elite's masked weights themselves.
+With decay 0.75, r = 4 is a power of two, so the folded weights are exact and ``W = (r W) / r``; with other
+decays the folded weights are rounded to float32.
 """
 
 from __future__ import annotations
@@ -51,13 +57,16 @@ def nir_parameters(decay: float, dt: float = DT) -> tuple[float, float]:
     return dt / (1.0 - decay), 1.0 / (1.0 - decay)
 
 
-def to_nir(elite: Elite, dt: float = DT):
-    """The elite SPN as a ``nir.NIRGraph`` (see the module docstring for the mapping)."""
+def to_nir(elite: Elite, dt: float = DT, fold_r: bool = False):
+    """The elite SPN as a ``nir.NIRGraph`` (see the module docstring for the mapping); ``fold_r``: r = 1 and the
+    weights scaled by r."""
     nir = require("nir", "nir")
     snn, spec = elite.cfg.algo.snn, elite.spec
-    w1, w2 = (w.detach().numpy().astype(np.float32) for w in elite.weights)
-    h, m = w1.shape[0], w2.shape[0]
     tau, r = nir_parameters(snn.decay, dt)
+    scale = r if fold_r else 1.0
+    w1, w2 = ((w.detach().double() * scale).numpy().astype(np.float32) for w in elite.weights)
+    h, m = w1.shape[0], w2.shape[0]
+    r = 1.0 if fold_r else r
 
     def full(size: int, value: float) -> np.ndarray:  # float64: dt / tau is then exactly 1 - decay
         return np.full(size, value, dtype=np.float64)
@@ -70,6 +79,7 @@ def to_nir(elite: Elite, dt: float = DT):
         "dt": dt,
         "time_steps": int(snn.time_steps),
         "decay": float(snn.decay),
+        "r_folded": bool(fold_r),
         "integration": "forward Euler: v[t] = (1 - dt/tau) * v[t-1] + (dt/tau) * r * I[t]",
         "threshold": "strict: spike when v > v_threshold; reset to v_reset right after the spike",
         "state": "zero at the start of every environment step",
@@ -104,13 +114,15 @@ def to_nir(elite: Elite, dt: float = DT):
     return nir.NIRGraph(nodes=nodes, edges=edges, metadata=metadata)
 
 
-def export(run_dir: str | Path, out: str | Path, fmt: str = "nir", generation: int | None = None) -> Path:
+def export(
+    run_dir: str | Path, out: str | Path, fmt: str = "nir", generation: int | None = None, fold_r: bool = False
+) -> Path:
     """Write the elite of ``generation`` (default: the last) of the run in ``run_dir`` to ``out``."""
     if fmt not in FORMATS:
         raise SpnError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     nir = require("nir", "nir")
     elite = load_elite(run_dir, generation)
-    graph = to_nir(elite)
+    graph = to_nir(elite, fold_r=fold_r)
     out = Path(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -126,9 +138,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("out", type=Path, help="the file to write (e.g. elite.nir)")
     parser.add_argument("--format", default="nir", choices=FORMATS, help="output format (default nir)")
     parser.add_argument("--generation", type=int, default=None, help="whose elite (1-based; default: the last)")
+    parser.add_argument(
+        "--fold-r", action="store_true", help="r = 1, weights scaled by r: for consumers that ignore r (Norse, Sinabs)"
+    )
     args = parser.parse_args(argv)
     try:
-        path = export(args.run_dir, args.out, args.format, args.generation)
+        path = export(args.run_dir, args.out, args.format, args.generation, args.fold_r)
     except SpnError as err:
         sys.exit(f"error: {err}")
     print(f"wrote {path}")

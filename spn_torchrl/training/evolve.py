@@ -97,7 +97,7 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     run extended to more generations writes the rows of an uninterrupted longer run.
     """
     spec = task_spec(cfg.env.id)
-    with open_run(cfg, run_dir, run_name, cfg.algo.kind, run_meta(cfg, spec)) as run:
+    with open_run(cfg, run_dir, run_name, cfg.algo.kind, run_meta(cfg, spec), cfg.algo.generations) as run:
         state = start_state(cfg, spec, run)
         if state is None:
             return run.rows[-1] if run.rows else {}

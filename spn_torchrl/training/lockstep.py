@@ -63,7 +63,9 @@ def evolve_lockstep(cfg: RunConfig, out: Path) -> dict[int, dict[str, Any]]:
             except OSError as err:
                 raise run_file_error(run_dir, err) from None
             stack.enter_context(run_lock(run_dir))
-            run = stack.enter_context(open_run(run_cfg, run_dir, name, run_cfg.algo.kind, run_meta(run_cfg, spec)))
+            run = stack.enter_context(
+                open_run(run_cfg, run_dir, name, run_cfg.algo.kind, run_meta(run_cfg, spec), run_cfg.algo.generations)
+            )
             state = start_state(run_cfg, spec, run)
             if state is None:
                 last[run_cfg.seed] = run.rows[-1] if run.rows else {}

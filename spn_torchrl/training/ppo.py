@@ -171,8 +171,8 @@ def run_meta(cfg: RunConfig, spec: TaskSpec) -> dict[str, Any]:
 def train_ppo(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """Run (or resume) PPO; returns the last iteration's metrics."""
     spec = task_spec(cfg.env.id)
-    with open_run(cfg, run_dir, run_name, "ppo", run_meta(cfg, spec)) as run:
-        iterations = cfg.algo.total_env_steps // cfg.algo.frames_per_batch
+    iterations = cfg.algo.total_env_steps // cfg.algo.frames_per_batch
+    with open_run(cfg, run_dir, run_name, "ppo", run_meta(cfg, spec), iterations) as run:
         done = 0 if run.state is None else run.state["iteration"]  # at most iterations: open_run refuses fewer
         if done == iterations:
             log.info("%s already ran its %d iterations", run_dir, iterations)
