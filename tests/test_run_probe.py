@@ -4,6 +4,7 @@ subprocess run of train.py with real processes, signals and files)."""
 
 from __future__ import annotations
 
+import csv
 import os
 import signal
 import subprocess
@@ -168,3 +169,21 @@ def test_a_non_finite_value_ends_the_run_in_one_sentence(tmp_path, method, what,
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert last_line(proc) == f"error: {what} became NaN or infinite in {sentence}"
     assert not (tmp_path / "progress.csv").exists()
+
+
+def test_an_extended_ppo_run_writes_the_rows_of_a_straight_run(tmp_path):
+    """2000 steps resumed to 4000 with eval_interval=3 write the rows of a straight 4000-step run, energy counts
+    included: iteration 10, the end of the first segment, is not evaluated in either."""
+    overrides = [*PPO, "env=cartpole", "algo.eval_interval=3", "seed=2", *ONE]
+    straight, extended = tmp_path / "straight", tmp_path / "extended"
+    run_train(straight, *overrides, "algo.total_env_steps=4000")
+    run_train(extended, *overrides, "algo.total_env_steps=2000")
+    run_train(extended, *overrides, "algo.total_env_steps=4000", "resume=true")
+    timing = {"wall_time_s", "steps_per_s"}
+
+    def rows(run_dir: Path) -> list[dict[str, str]]:  # the text of each cell: bit for bit, NaN equal to NaN
+        with open(run_dir / "progress.csv", newline="") as f:
+            return [{k: v for k, v in row.items() if k not in timing} for row in csv.DictReader(f)]
+
+    assert len(rows(straight)) == 20
+    assert rows(extended) == rows(straight)
