@@ -10,11 +10,13 @@ import hashlib
 import json
 import os
 import sys
-from importlib.metadata import version
 
 import gym
-import mujoco_py
 import numpy as np
+
+# the worker's stack report (numpy and gym only, like this script; the package itself needs torch)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "spn_torchrl", "envs"))
+import gym_v2_server  # noqa: E402
 
 TASKS = {"HalfCheetah-v2": "half_cheetah.xml", "Swimmer-v2": "swimmer.xml"}
 FIELDS = ("body_mass", "body_inertia", "body_ipos", "body_iquat")
@@ -35,12 +37,7 @@ def task_record(env_id, xml):
 def main(out):
     data = {
         "provenance": {
-            "gym": gym.__version__,
-            "free_mujoco_py": version("free-mujoco-py"),
-            "mujoco_py": mujoco_py.__version__,
-            "mj_version": int(mujoco_py.functions.mj_version()),
-            "numpy": np.__version__,
-            "python": sys.version.split()[0],
+            **gym_v2_server.versions(),
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "script": "scripts/dump_mujoco210_inertia.py",
         },

@@ -407,6 +407,9 @@ class RunConfig:
     # observations its policies saw (spn_torchrl/snn/observations.py); the paper's policies see raw observations;
     # source: EvolvingConnectivity ec.py
     normalize_observations: bool = False
+    # option (beyond the paper, which ran its seeds apart): the seeds of GA or EC runs evolved in lockstep in this
+    # process, each in its own directory; null: one run of ``seed`` (spn_torchrl/training/lockstep.py); source: project
+    lockstep: Optional[list[int]] = None
 
     def __post_init__(self) -> None:
         if any(value is MISSING or value == MISSING for value in (self.algo, self.env, self.logger, self.evaluator)):
@@ -448,6 +451,8 @@ class RunConfig:
                 f"local for algo={self.algo.name} (Ray actors evaluate GA or EC populations; PPO trains one policy here)",
             )
             _int_in("evaluator.num_actors", self.evaluator.num_actors, 1, self.algo.population)
+        if self.lockstep is not None:
+            self._check_lockstep()
         if self.env.backend == "mujoco_warp":
             _check(
                 isinstance(self.evaluator, LocalEvaluatorConfig) and self.evaluator.processes in (None, 1),
@@ -456,13 +461,39 @@ class RunConfig:
                 "local with evaluator.processes 1 or null for env.backend=mujoco_warp (one device holds every world)",
             )
 
+    def _check_lockstep(self) -> None:
+        seeds = list(self.lockstep)
+        _check(bool(seeds), "lockstep", seeds, "null or a non-empty list of seeds")
+        for seed in seeds:
+            _int_in("lockstep seeds", seed, 0, MAX_SEED)
+        _check(len(set(seeds)) == len(seeds), "lockstep", seeds, "a list of distinct seeds")
+        _check(self.seed == 0, "seed", self.seed, "0 (its default) with lockstep, whose list gives the runs' seeds")
+        _check(
+            isinstance(self.algo, EVOLUTION), "lockstep", seeds, f"null for algo={self.algo.name} (GA or EC runs only)"
+        )
+        _check(
+            isinstance(self.evaluator, LocalEvaluatorConfig),
+            "lockstep",
+            seeds,
+            "null for evaluator=ray (lockstep runs share this machine's evaluator)",
+        )
+
     @property
     def is_ga(self) -> bool:
         return isinstance(self.algo, GAConfig)
 
 
+def seeds_label(seed: Any, lockstep: Any) -> str:
+    """The seed part of a job's Hydra directory (``${seeds:${seed},${lockstep}}`` in conf/config.yaml): ``seed``,
+    or with ``lockstep`` its seeds joined by '-' (``0-1-2``), so that the jobs of a multirun over lockstep
+    batches (``-m lockstep=[0,1],[2,3]``) get their own directories."""
+    return str(seed) if lockstep is None else "-".join(str(s) for s in lockstep)
+
+
 def register_configs() -> None:
-    """Register the schemas that the YAML files in conf/ extend."""
+    """Register the schemas that the YAML files in conf/ extend, and the ``seeds`` resolver their Hydra
+    directories use."""
+    OmegaConf.register_new_resolver("seeds", seeds_label, replace=True)
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
     cs.store(group="algo", name="ga_schema", node=GAConfig)

@@ -41,7 +41,7 @@ from spn_torchrl.records import (
 log = logging.getLogger("spn_torchrl")
 
 # fields that cannot change a run's results: a resume may change them (logged)
-SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator")
+SAFE = ("run_name", "torch_threads", "env.threads", "logger", "evaluator", "lockstep")
 UNCOMPARED = ("resume",)  # the act of resuming itself, not a change to log or refuse
 # fields added after runs were written, with the value every earlier run had: a saved config without one reads so
 ADDED = {"normalize_observations": False}

@@ -255,6 +255,7 @@ def make_logger(cfg: RunConfig, run_dir: Path, run_name: str, run_id: str | None
         mode=mode,
         offline=mode == "offline",
         config=config_dict(cfg),
+        reinit="create_new",  # runs in lockstep: one W&B run each, open side by side in one process
     )
 
 

@@ -17,6 +17,7 @@ from spn_torchrl.errors import RunInterrupted, require
 from spn_torchrl.lifecycle import resume_hint, run_lock, signals_interrupt
 from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.training.evolve import evolve
+from spn_torchrl.training.lockstep import evolve_lockstep
 from spn_torchrl.training.ppo import train_ppo
 
 log = logging.getLogger("spn_torchrl")
@@ -52,7 +53,8 @@ def check(cfg: RunConfig) -> None:
 
 def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
     """Check ``cfg`` and run its algorithm in ``run_dir`` (default: Hydra's output directory); returns the last
-    row. SIGINT and SIGTERM end it with :class:`RunInterrupted` after its last consistent checkpoint."""
+    row (with ``lockstep``, each seed's, its runs in subdirectories of ``run_dir``). SIGINT and SIGTERM end it
+    with :class:`RunInterrupted` after its last consistent checkpoint."""
     typed = cfg if isinstance(cfg, RunConfig) else to_run_config(cfg)
     check(typed)
     out = Path(run_dir) if run_dir is not None else hydra_run_dir()
@@ -66,6 +68,8 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
     train = evolve if isinstance(typed.algo, EVOLUTION) else train_ppo
     try:
         with signals_interrupt(), run_lock(out):
+            if typed.lockstep is not None:  # each run also holds its own directory's lock
+                return evolve_lockstep(typed, out)
             return train(typed, out, run_name(typed))
     except RunInterrupted as err:
         err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)

@@ -70,12 +70,17 @@ def same_state_trajectories(env_id: str, slots: int, steps: int, seed: int = 0) 
     return np.array(obs_diff), np.array(reward_diff)
 
 
-@pytest.mark.slow
-def test_swimmer_steps_as_gym_v2_over_1000_steps():
+def require_v2_venv() -> None:
+    """Fail (not skip) without the gym_v2 venv."""
     try:
         v2_python()
     except ConfigError as err:
         pytest.fail(f"{err} (.ci/run builds it)")
+
+
+@pytest.mark.slow
+def test_swimmer_steps_as_gym_v2_over_1000_steps():
+    require_v2_venv()
     obs_diff, reward_diff = same_state_trajectories("Swimmer-v5", 4, 1000)
     # measured: 2e-15 after one step, 9e-14 over 100, 8e-8 over 1000 (rounding that the dynamics amplify)
     assert obs_diff[:2].max() < 1e-13 and obs_diff[:101].max() < 1e-11
@@ -84,10 +89,7 @@ def test_swimmer_steps_as_gym_v2_over_1000_steps():
 
 @pytest.mark.slow
 def test_halfcheetah_matches_for_a_step_and_in_distribution():
-    try:
-        v2_python()
-    except ConfigError as err:
-        pytest.fail(f"{err} (.ci/run builds it)")
+    require_v2_venv()
     obs_diff, _ = same_state_trajectories("HalfCheetah-v5", 4, 2)
     assert obs_diff[1] < 1e-12  # then contacts make the two solvers drift apart (notes/issue43.md)
     # one genome x 12 episodes keeps the test short; notes/issue43.md has 3 x 30 (python -m spn_torchrl.tools.v2_compare)

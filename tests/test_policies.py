@@ -99,3 +99,29 @@ def test_errors_are_clear():
         spn.set_genomes(torch.randn(2, 7))
     with pytest.raises(ValueError, match="genome_kind"):
         make("synapses")
+
+
+@pytest.mark.parametrize("kind", ["connections", "weights"])
+def test_each_genome_uses_its_runs_fixed_weights_bit_for_bit(kind):
+    """Lockstep: an SPN of three runs' fixed weights gives each genome exactly what its run's own SPN gives it."""
+    singles = [make(kind, n=17, m=6, seed=seed) for seed in (0, 1, 2)]
+    stacked = PopulationSPN(
+        torch.stack([s.w1 for s in singles]), torch.stack([s.w2 for s in singles]), genome_kind=kind
+    )
+    assert stacked.runs == 3 and stacked.genome_size == singles[0].genome_size
+    genomes = torch.randn(12, stacked.genome_size) * (0.3 if kind == "weights" else 1.0)
+    runs = torch.tensor([2, 0, 1, 1, 0, 2, 2, 2, 0, 1, 0, 1])
+    obs = torch.randn(12, 17) * 3
+    stacked.set_genomes(genomes, runs)
+    actions, spikes = stacked(obs)
+    for r, single in enumerate(singles):
+        mine = runs == r
+        single.set_genomes(genomes[mine])
+        a, s = single(obs[mine])
+        assert torch.equal(actions[mine], a) and torch.equal(spikes[mine], s)
+    with pytest.raises(ValueError, match="runs must be given exactly when"):
+        stacked.set_genomes(genomes)
+    with pytest.raises(ValueError, match="runs must be given exactly when"):
+        singles[0].set_genomes(genomes, runs)
+    with pytest.raises(ValueError, match=r"runs must be \[12\]"):
+        stacked.set_genomes(genomes, runs[:5])

@@ -3,6 +3,7 @@ one method with different results-affecting configs are listed apart."""
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 import subprocess
@@ -14,6 +15,7 @@ from omegaconf import OmegaConf
 from synthetic_runs import write_run
 
 from spn_torchrl.analysis.report import build_report
+from spn_torchrl.config import config_dict
 
 
 def set_field(run, key, value):
@@ -47,6 +49,20 @@ def test_runs_with_different_results_affecting_configs_are_listed_apart(tmp_path
         "conn_ga (algo.sigma=0.5)": [1],
     }
     assert "different results-affecting configs are listed apart" in (tmp_path / "out/report.md").read_text()
+
+
+def test_runs_saved_in_an_earlier_schema_pool_with_todays(tmp_path, make_config):
+    """A run saved before algo.snn existed (its SNN constants under algo.) and before normalize_observations and
+    env.device were added is a seed of the same method as one saved today with the same values."""
+    today = config_dict(make_config("env=cartpole"))
+    earlier = copy.deepcopy(today)
+    earlier["algo"].update(earlier["algo"].pop("snn"))
+    del earlier["normalize_observations"], earlier["env"]["device"]
+    for seed, config in enumerate((earlier, today)):
+        run = write_run(tmp_path, "cartpole", "CartPole-v1", "conn_ga", seed, [10.0 + seed])
+        (run / ".hydra/config.yaml").write_text(OmegaConf.to_yaml({**config, "seed": seed}))
+    methods = build_report([tmp_path], tmp_path / "out")["tasks"]["cartpole"]["methods"]
+    assert {name: m["seeds"] for name, m in methods.items()} == {"conn_ga": [0, 1]}
 
 
 @pytest.mark.slow

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from spn_torchrl.errors import SpnError
+from spn_torchrl.config import config_dict, from_saved
+from spn_torchrl.errors import ConfigError, SpnError
 from spn_torchrl.lifecycle import BUDGET, affects_results, flatten
 from spn_torchrl.records import read_progress
 
@@ -74,8 +75,15 @@ class RunRecord:
     def results_config(self) -> dict[str, str]:
         """The fields of its config that change results (as the resume contract counts them), less the seed (what
         is pooled), the budget (runs of different lengths are cut to the rows all reached) and ``env.name`` (a
-        label): two runs that differ here are not seeds of one method."""
-        flat = flatten(OmegaConf.to_container(self.config, resolve=False))
+        label): two runs that differ here are not seeds of one method. The config is read as today's schema
+        (:func:`config.from_saved`: moved fields in their new place, fields added since at their defaults), so a
+        run saved before a field existed pools with the runs that state its default."""
+        saved = OmegaConf.to_container(self.config, resolve=False)
+        try:
+            saved = config_dict(from_saved(saved))
+        except ConfigError:  # a config today's schema cannot read: compared as saved
+            pass
+        flat = flatten(saved)
         skip = ("seed", "env.name", BUDGET.get(self.kind, ""))
         return {k: repr(v) for k, v in sorted(flat.items()) if k not in skip and affects_results(k, self.kind)}
 

@@ -106,12 +106,15 @@ class ProcessEvaluator:
             self.close()
             raise
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
+    def __call__(
+        self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None, runs: np.ndarray | None = None
+    ) -> Episodes:
         requests = shard_requests(
-            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", norm
+            self.spn, genomes, seeds, len(self._pipes), self.capacity, "evaluator processes", norm, runs
         )
         asked = [
-            (index, ("evaluate", (shard, shard_seeds, part))) for index, _, _, shard, shard_seeds, part in requests
+            (index, ("evaluate", (shard, shard_seeds, part, shard_runs)))
+            for index, _, _, shard, shard_seeds, part, shard_runs in requests
         ]
         return merge(self._ask(asked, "evaluate"))
 

@@ -47,14 +47,17 @@ class RayEvaluator:
         self.bytes_sent = 0  # genomes and seeds, every call
         self.bytes_received = 0  # returns, steps, spikes, every call
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
+    def __call__(
+        self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None, runs: np.ndarray | None = None
+    ) -> Episodes:
         calls = []
-        for index, start, stop, shard, shard_seeds, part in shard_requests(
-            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors", norm
+        for index, start, stop, shard, shard_seeds, part, shard_runs in shard_requests(
+            self.spn, genomes, seeds, len(self.actors), self.capacity, "Ray actors", norm, runs
         ):
             self.bytes_sent += shard.nbytes + shard_seeds.nbytes  # + an int64 seed per genome
             self.bytes_sent += 0 if part is None else sum(rows.nbytes for rows in part)
-            calls.append((index, start, stop, self.actors[index].evaluate.remote(shard, shard_seeds, part)))
+            remote = self.actors[index].evaluate.remote(shard, shard_seeds, part, shard_runs)
+            calls.append((index, start, stop, remote))
         deadline = None if self.call_timeout_s is None else time.monotonic() + self.call_timeout_s
         return merge([self._collect(*call, deadline) for call in calls])
 

@@ -86,15 +86,19 @@ class PopulationEvaluator:
             raise ValueError(f"the evaluator steps an env of batch [P], got {tuple(self.shape)}")
         self._td: TensorDictBase | None = None
 
-    def __call__(self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None) -> Episodes:
-        """One episode per genome; ``norm``: each genome's observation normalisation ([B, n] or [1, n]), whose
-        episodes then also return the moments of what each policy saw."""
+    def __call__(
+        self, genomes: torch.Tensor, seeds: int | np.ndarray, norm: Norm | None = None, runs: np.ndarray | None = None
+    ) -> Episodes:
+        """One episode per genome, slot i reset with ``seeds[i]``; ``norm``: each genome's observation
+        normalisation ([B, n] or [1, n]), whose episodes then also return the moments of what each policy saw;
+        ``runs`` [B]: each genome's run where the SPN holds several runs' fixed weights
+        (:class:`~spn_torchrl.snn.policies.PopulationSPN`)."""
         count = genomes.shape[0]
         if not 0 < count <= self.size:
             raise ValueError(f"the env holds {self.size} individuals, got {count} genomes")
         idle = np.zeros(self.size - count, dtype=np.int64)  # any seed: idle slots are never counted
         seeds = np.concatenate([slot_seeds(seeds, count), idle])
-        self.spn.set_genomes(genomes)
+        self.spn.set_genomes(genomes, None if runs is None else torch.from_numpy(np.asarray(runs, dtype=np.int64)))
         self.spn.set_observation_norm(norm)
         if self.on_device:
             if norm is not None:
@@ -201,9 +205,12 @@ class ObservedMoments:
 
 
 class Evaluator(Protocol):
-    """What the GA loop needs: genomes [B, D] and their env seeds [B] in (and, with normalised observations,
-    each genome's normalisation), one episode per genome out."""
+    """What the GA loop needs: genomes [B, D] and their env seeds [B] in (with normalised observations, each
+    genome's normalisation; for an SPN that holds several runs' fixed weights, each genome's run), one episode
+    per genome out."""
 
-    def __call__(self, genomes: torch.Tensor, seeds: np.ndarray, norm: Norm | None = None) -> Episodes: ...
+    def __call__(
+        self, genomes: torch.Tensor, seeds: np.ndarray, norm: Norm | None = None, runs: np.ndarray | None = None
+    ) -> Episodes: ...
 
     def close(self) -> None: ...

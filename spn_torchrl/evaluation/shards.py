@@ -56,10 +56,11 @@ def shard_requests(
     capacity: int,
     holders: str,
     norm: Norm | None = None,
-) -> list[tuple[int, int, int, np.ndarray, np.ndarray, ShardNorm]]:
+    runs: np.ndarray | None = None,
+) -> list[tuple[int, int, int, np.ndarray, np.ndarray, ShardNorm, np.ndarray | None]]:
     """What each of ``parts`` workers gets for a genome set: (worker, start, stop, its encoded genomes, their env
-    seeds, their observation normalisation or None) for every non-empty shard; ValueError naming ``holders``
-    past ``capacity``."""
+    seeds, their observation normalisation or None, their runs or None) for every non-empty shard; ValueError
+    naming ``holders`` past ``capacity``."""
     count = genomes.shape[0]
     if not 0 < count <= capacity:
         raise ValueError(f"the {holders} hold {capacity} individuals, got {count} genomes")
@@ -71,7 +72,15 @@ def shard_requests(
 
     bounds = enumerate(shard_bounds(count, parts))
     return [
-        (i, start, stop, payload[start:stop], seeds[start:stop], part(start, stop))
+        (
+            i,
+            start,
+            stop,
+            payload[start:stop],
+            seeds[start:stop],
+            part(start, stop),
+            None if runs is None else runs[start:stop],
+        )
         for i, (start, stop) in bounds
         if stop > start
     ]
@@ -113,9 +122,11 @@ class ShardWorker:
     def ready(self) -> int:
         return self.evaluator.size
 
-    def evaluate(self, payload: np.ndarray, seeds: np.ndarray, norm: ShardNorm = None) -> Results:
+    def evaluate(
+        self, payload: np.ndarray, seeds: np.ndarray, norm: ShardNorm = None, runs: np.ndarray | None = None
+    ) -> Results:
         genomes = decode_genomes(payload, self.genome_kind, self.genome_size)
-        episodes = self.evaluator(genomes, seeds, None if norm is None else tuple(map(torch.from_numpy, norm)))
+        episodes = self.evaluator(genomes, seeds, None if norm is None else tuple(map(torch.from_numpy, norm)), runs)
         results = episodes.returns.numpy(), episodes.steps.numpy(), episodes.spikes.numpy()
         return results if norm is None else results + tuple(t.numpy() for t in episodes.moments)
 

@@ -34,6 +34,8 @@ def genome_size(w1: torch.Tensor, w2: torch.Tensor) -> int:
 class PopulationSPN(nn.Module):
     """The SPN of SPEC.md for a population of genomes [P, D].
 
+    The fixed weights are one pair, W1 [h, n] and W2 [m, h], or one pair for each of R runs evolved in lockstep
+    ([R, h, n] and [R, m, h]); then each genome uses the pair of its run (``runs`` of :meth:`set_genomes`).
     ``genome_kind="connections"``: genes are connection scores, a synapse exists where
     ``sigmoid(score) >= snn.score_threshold``, and its weight is the fixed one. ``"weights"``: genes are the
     weights themselves (no mask). Call :meth:`set_genomes` once per genome set (and
@@ -56,11 +58,15 @@ class PopulationSPN(nn.Module):
         super().__init__()
         if genome_kind not in GENOME_KINDS:
             raise ValueError(f"genome_kind must be one of {GENOME_KINDS}, got {genome_kind!r}")
-        if w1.ndim != 2 or w2.ndim != 2 or w2.shape[1] != w1.shape[0]:
-            raise ValueError(f"fixed weights must be [h, n] and [m, h], got {tuple(w1.shape)} and {tuple(w2.shape)}")
+        stacked = w1.ndim == 3 and w2.ndim == 3 and w1.shape[0] == w2.shape[0]
+        if not (stacked or (w1.ndim == 2 and w2.ndim == 2)) or w2.shape[-1] != w1.shape[-2]:
+            raise ValueError(
+                f"fixed weights must be [h, n] and [m, h] (or [R, h, n] and [R, m, h]), got {tuple(w1.shape)} and "
+                f"{tuple(w2.shape)}"
+            )
         self.register_buffer("w1", w1.detach().clone().float())
         self.register_buffer("w2", w2.detach().clone().float())
-        m = w2.shape[0]
+        m = w2.shape[-2]
         low = torch.full((m,), -math.inf) if action_low is None else torch.as_tensor(action_low, dtype=torch.float32)
         high = torch.full((m,), math.inf) if action_high is None else torch.as_tensor(action_high, dtype=torch.float32)
         self.register_buffer("action_low", low.reshape(m).clone())
@@ -80,7 +86,12 @@ class PopulationSPN(nn.Module):
 
     @property
     def genome_size(self) -> int:
-        return genome_size(self.w1, self.w2)
+        return self.w1.shape[-2:].numel() + self.w2.shape[-2:].numel()
+
+    @property
+    def runs(self) -> int | None:
+        """How many runs' fixed weights it holds (None: one pair, shared by every genome)."""
+        return self.w1.shape[0] if self.w1.ndim == 3 else None
 
     def masks(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Connection masks [P, h, n] and [P, m, h] (all ones for weight genomes)."""
@@ -89,16 +100,32 @@ class PopulationSPN(nn.Module):
             return torch.ones_like(g1, dtype=torch.bool), torch.ones_like(g2, dtype=torch.bool)
         return torch.sigmoid(g1) >= self.score_threshold, torch.sigmoid(g2) >= self.score_threshold
 
-    def effective_weights(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Per-individual weights [P, h, n] and [P, m, h] that the forward pass uses."""
+    def effective_weights(
+        self, genomes: torch.Tensor, runs: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-individual weights [P, h, n] and [P, m, h] that the forward pass uses; ``runs`` [P] names each
+        genome's run where the SPN holds several runs' fixed weights (the same products as one run's SPN)."""
+        if (runs is None) != (self.runs is None):
+            raise ValueError(
+                f"runs must be given exactly when the SPN holds several runs' fixed weights (it holds {self.runs})"
+            )
+        if runs is not None:
+            runs = torch.as_tensor(runs, dtype=torch.long, device=self.w1.device)
+            if runs.shape != (genomes.shape[0],):
+                raise ValueError(
+                    f"runs must be [{genomes.shape[0]}], one run index per genome, got {tuple(runs.shape)}"
+                )
         if self.genome_kind == "weights":
             return self._split(genomes.to(self.w1))
         x1, x2 = self.masks(genomes)
-        return self.w1 * x1, self.w2 * x2
+        if runs is None:
+            return self.w1 * x1, self.w2 * x2
+        return self.w1[runs] * x1, self.w2[runs] * x2
 
-    def set_genomes(self, genomes: torch.Tensor) -> None:
-        """Compute the effective weights of a genome set once, for every later forward call."""
-        w1, w2 = self.effective_weights(genomes.to(self.w1.device))
+    def set_genomes(self, genomes: torch.Tensor, runs: torch.Tensor | None = None) -> None:
+        """Compute the effective weights of a genome set (of the ``runs`` named, see :meth:`effective_weights`)
+        once, for every later forward call."""
+        w1, w2 = self.effective_weights(genomes.to(self.w1.device), runs)
         # input-major [P, n, h] and [P, h, m], the layout neurons.spn_dynamics multiplies fastest
         self.w1_eff, self.w2_eff = w1.transpose(1, 2).contiguous(), w2.transpose(1, 2).contiguous()
 
@@ -125,8 +152,8 @@ class PopulationSPN(nn.Module):
     def _split(self, genomes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if genomes.ndim != 2 or genomes.shape[1] != self.genome_size:
             raise ValueError(f"genomes must be [P, {self.genome_size}], got {tuple(genomes.shape)}")
-        h, n = self.w1.shape
-        m = self.w2.shape[0]
+        h, n = self.w1.shape[-2:]
+        m = self.w2.shape[-2]
         p = genomes.shape[0]
         return genomes[:, : h * n].reshape(p, h, n), genomes[:, h * n :].reshape(p, m, h)
 
@@ -171,8 +198,10 @@ class TrainableSPN(nn.Module):
 
     def __init__(self, spn: PopulationSPN, scores: torch.Tensor, spike_fn: neurons.SpikeFn) -> None:
         super().__init__()
-        if spn.genome_kind != "connections":
-            raise ValueError("TrainableSPN trains connection scores: build it from a 'connections' PopulationSPN")
+        if spn.genome_kind != "connections" or spn.runs is not None:
+            raise ValueError(
+                "TrainableSPN trains connection scores: build it from a one-run 'connections' PopulationSPN"
+            )
         self.spn = spn
         self.scores = nn.Parameter(scores.detach().clone().float().reshape(spn.genome_size))
         self.spike_fn = spike_fn

@@ -67,6 +67,20 @@ def initial_state(algo: GAConfig | ECConfig, spec: TaskSpec, seed: int, normaliz
     }
 
 
+def start_state(cfg: RunConfig, spec: TaskSpec, run: Run) -> dict[str, Any] | None:
+    """The state an open run goes on from (a new run's generation 0), or None when it has run its generations
+    (``open_run`` refuses a budget below what it has done)."""
+    state = run.state or initial_state(cfg.algo, spec, cfg.seed, cfg.normalize_observations)
+    done = state["generation"]
+    if done == cfg.algo.generations and state["pending"] is None:
+        log.info("%s already ran its %d generations", run.dir, done)
+        return None
+    if run.state is not None:
+        waiting = "" if state["pending"] is None else "; its row follows its elite's re-evaluation"
+        log.info("resuming %s after generation %d%s", run.dir, done, waiting)
+    return state
+
+
 def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """Run (or resume) the GA of SPEC.md or EC (``algo=conn_ec``); returns the last generation's metrics.
 
@@ -84,52 +98,126 @@ def evolve(cfg: RunConfig, run_dir: Path, run_name: str) -> dict[str, Any]:
     """
     spec = task_spec(cfg.env.id)
     with open_run(cfg, run_dir, run_name, cfg.algo.kind, run_meta(cfg, spec)) as run:
-        state = run.state or initial_state(cfg.algo, spec, cfg.seed, cfg.normalize_observations)
-        done = state["generation"]  # at most algo.generations: open_run refuses a smaller budget
-        if done == cfg.algo.generations and state["pending"] is None:
-            log.info("%s already ran its %d generations", run_dir, done)
+        state = start_state(cfg, spec, run)
+        if state is None:
             return run.rows[-1] if run.rows else {}
-        if run.state is not None:
-            waiting = "" if state["pending"] is None else "; its row follows its elite's re-evaluation"
-            log.info("resuming %s after generation %d%s", run_dir, done, waiting)
-        return _generations(cfg, spec, run, state)
+        loop = Generations(cfg, spec, run, state)
+        evaluator = make_evaluator(cfg, spec, loop.spn)
+        try:
+            while (request := loop.next_rollout()) is not None:
+                genomes, seeds, norm = request
+                loop.take(evaluator(genomes, seeds) if norm is None else evaluator(genomes, seeds, norm))
+        finally:
+            evaluator.close()
+        return loop.row
 
 
-def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]) -> dict[str, Any]:
-    """The loop from ``state`` to ``algo.generations``, recording each generation's row and checkpoint."""
-    algo = cfg.algo
-    method = ec.ECStep(algo, state) if isinstance(algo, ECConfig) else ga.GAStep(algo, state)
-    generator = torch.Generator()
-    generator.set_state(state["rng"])
-    w1, w2 = state["w1"], state["w2"]
-    population, start, pending = state["population"], state["generation"], state["pending"]
-    elites, total_steps, wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
-    stats = state.get("obs_stats")  # None: raw observations (the paper's)
-    elite_norms = [] if stats is None else list(zip(*state["elite_norms"]))
-    spn = spn_from_config(algo.snn, algo.genome, spec, w1, w2)
-    k, episodes, n = algo.elite_candidates, algo.elite_episodes, algo.population
-    row: dict[str, Any] = {}
-    started = time.perf_counter()
-    since_row = {"steps": 0, "wall": wall}  # env steps run and wall time at the previous row
+Rollout = tuple[torch.Tensor, np.ndarray, observations.Norm | None]  # genomes [B, D], env seeds [B], slots' norm
 
-    def elapsed() -> float:
+
+class Generations:
+    """One GA or EC run's loop from ``state`` to ``algo.generations``, a rollout at a time: :meth:`next_rollout`
+    gives the genomes, env seeds and observation normalisation of its next rollout (None: done), :meth:`take` its
+    episodes: a generation's step and checkpoint, and the previous generation's row once its elite is
+    re-evaluated. Several runs in lockstep (:mod:`spn_torchrl.training.lockstep`) share each rollout."""
+
+    def __init__(self, cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any], label: str = "") -> None:
+        self.cfg, self.spec, self.run, self.label = cfg, spec, run, label
+        algo = cfg.algo
+        self.method = ec.ECStep(algo, state) if isinstance(algo, ECConfig) else ga.GAStep(algo, state)
+        self.generator = torch.Generator()
+        self.generator.set_state(state["rng"])
+        self.w1, self.w2 = state["w1"], state["w2"]
+        self.population, self.generation, self.pending = state["population"], state["generation"], state["pending"]
+        self.elites, self.total_steps, self.wall = list(state["elites"]), state["total_env_steps"], state["wall_time_s"]
+        self.stats = state.get("obs_stats")  # None: raw observations (the paper's)
+        self.elite_norms = [] if self.stats is None else list(zip(*state["elite_norms"]))
+        self.spn = spn_from_config(algo.snn, algo.genome, spec, self.w1, self.w2)
+        self.row: dict[str, Any] = {}
+        self.started = time.perf_counter()
+        self.since_row = {"steps": 0, "wall": self.wall}  # env steps run and wall time at the previous row
+        self._norm: observations.Norm | None = None  # the statistics the population of the rollout asked sees
+        self._at = ""  # the generation the rollout asked evaluates, for non-finite errors
+
+    def elapsed(self) -> float:
         """Wall time of the run so far, earlier segments of a resumed run included."""
-        return wall + time.perf_counter() - started
+        return self.wall + time.perf_counter() - self.started
 
-    def finish(pending: dict[str, Any], reeval: Episodes) -> None:
-        """Pick the elite of a pending generation from its re-evaluation; record its row."""
-        nonlocal total_steps, row
-        now = elapsed()
+    def next_rollout(self) -> Rollout | None:
+        """The genomes, env seeds and slots' observation normalisation (None: raw) of the next rollout: the next
+        generation's population with the pending generation's re-evaluation, the last generation's re-evaluation
+        alone, or None once the run is done. A non-finite GA genome stops the run (:meth:`Run.require_finite`)."""
+        algo = self.cfg.algo
+        parts: list[Rollout] = []
+        if self.generation < algo.generations:
+            self._norm = None if self.stats is None else observations.policy_norm(self.stats)
+            seeds = episode_seeds(self.cfg.seed, self.generation + 1, FITNESS, algo.population)
+            parts.append((self.population, seeds, _slots_norm(self._norm, algo.population)))
+            self._at = f"generation {self.generation + 1}"
+        else:
+            self._at = f"generation {self.pending['generation']}" if self.pending is not None else ""
+        if self.pending is not None:
+            parts.append(self._reevaluation())
+        if not parts:
+            return None
+        genomes = torch.cat([part[0] for part in parts])
+        if isinstance(algo, GAConfig):  # EC's genomes are masks written as +-inf (ec.mask_genomes)
+            self.run.require_finite(f"a genome of the population (algo.sigma={algo.sigma:g})", genomes, self._at)
+        norms = [part[2] for part in parts]
+        norm = None if norms[0] is None else (torch.cat([m for m, _ in norms]), torch.cat([s for _, s in norms]))
+        return genomes, np.concatenate([part[1] for part in parts]), norm
+
+    def take(self, result: Episodes) -> None:
+        """The episodes of the rollout :meth:`next_rollout` asked for: step, record and checkpoint."""
+        algo = self.cfg.algo
+        self.run.require_finite("an episode return", result.returns, self._at)
+        self.since_row["steps"] += result.total_steps
+        if self.generation == algo.generations:  # the last generation's re-evaluation, alone
+            self._finish(result)
+            self.pending = None
+            self._save()
+            return
+        n = algo.population
+        fitness_eps = result.part(0, n)
+        if self.pending is not None:
+            self._finish(result.part(n, result.returns.numel()))
+        if self.stats is not None:
+            self.stats = observations.update(self.stats, observations.slot_moments(*fitness_eps.moments))
+        self.generation += 1
+        fitness = fitness_eps.returns
+        pool, candidates = self.method.elite_pool(self.population, fitness)
+        self.pending = {
+            "generation": self.generation,
+            "population": pool,
+            "fitness": fitness,
+            "steps": fitness_eps.total_steps,
+            "candidates": candidates,
+            **({} if self._norm is None else {"obs_norm": self._norm}),
+        }
+        self.population = self.method.advance(self.population, fitness, self.generator)
+        self._save()
+
+    def _reevaluation(self) -> Rollout:
+        k, episodes, pending = self.cfg.algo.elite_candidates, self.cfg.algo.elite_episodes, self.pending
+        genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
+        seeds = episode_seeds(self.cfg.seed, pending["generation"], REEVALUATION, k * episodes)
+        return genomes, seeds, _slots_norm(pending.get("obs_norm"), k * episodes)
+
+    def _finish(self, reeval: Episodes) -> None:
+        """Pick the elite of the pending generation from its re-evaluation; record its row."""
+        algo, pending = self.cfg.algo, self.pending
+        k, episodes = algo.elite_candidates, algo.elite_episodes
+        now = self.elapsed()
         candidates, fitness = pending["candidates"], pending["fitness"]
         elite_index, elite_return = ga.pick_elite(candidates, reeval.returns.view(k, episodes))
         elite = pending["population"][elite_index]
-        elites.append(elite.clone())
-        if stats is not None:
-            elite_norms.append(pending["obs_norm"])
+        self.elites.append(elite.clone())
+        if self.stats is not None:
+            self.elite_norms.append(pending["obs_norm"])
         slot = int((candidates == elite_index).nonzero()[0]) * episodes
-        mask1, mask2 = spn.masks(elite[None])
+        mask1, mask2 = self.spn.masks(elite[None])
         steps = pending["steps"] + reeval.total_steps
-        total_steps += steps
+        self.total_steps += steps
         generation = pending["generation"]
         rate = spike_rate(
             reeval.spikes[slot : slot + episodes],
@@ -137,115 +225,63 @@ def _generations(cfg: RunConfig, spec: TaskSpec, run: Run, state: dict[str, Any]
             algo.snn.hidden,
             algo.snn.time_steps,
         )
-        row = {
+        since = self.since_row
+        self.row = {
             "generation": generation,
             "eval_return": elite_return,
             "best_fitness": float(fitness.max()),
             "mean_fitness": float(fitness.mean()),
             "env_steps": steps,
-            "total_env_steps": total_steps,
+            "total_env_steps": self.total_steps,
             "wall_time_s": round(now, 3),
-            "steps_per_s": round(since_row["steps"] / max(now - since_row["wall"], 1e-9), 1),
+            "steps_per_s": round(since["steps"] / max(now - since["wall"], 1e-9), 1),
             "mask_density": mask_density(mask1, mask2),
             "spike_rate": rate,
             "synapses_l1": int(mask1.sum()),
             "synapses_l2": int(mask2.sum()),
-            "elite_index": elite_index if method.elite_from_population else -1,
+            "elite_index": elite_index if self.method.elite_from_population else -1,
         }
-        since_row.update(steps=0, wall=now)
-        run.record(row, step=generation)
+        since.update(steps=0, wall=now)
+        self.run.record(self.row, step=generation)
         log.info(
-            "gen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+            "%sgen %d/%d  eval_return %.2f  best %.2f  mean %.2f  steps %d  %.0f steps/s  density %.3f  spike_rate %.3f",
+            self.label,
             generation,
             algo.generations,
             elite_return,
-            row["best_fitness"],
-            row["mean_fitness"],
-            total_steps,
-            row["steps_per_s"],
-            row["mask_density"],
-            row["spike_rate"],
+            self.row["best_fitness"],
+            self.row["mean_fitness"],
+            self.total_steps,
+            self.row["steps_per_s"],
+            self.row["mask_density"],
+            self.row["spike_rate"],
         )
 
-    def save(generation: int) -> None:
-        run.save(
+    def _save(self) -> None:
+        w1, w2, stats = self.w1, self.w2, self.stats
+        self.run.save(
             {
-                "generation": generation,
-                "population": population,
-                "pending": pending,
-                "rng": generator.get_state(),
+                "generation": self.generation,
+                "population": self.population,
+                "pending": self.pending,
+                "rng": self.generator.get_state(),
                 "w1": w1,
                 "w2": w2,
-                "elites": torch.stack(elites) if elites else torch.empty(0, genome_size(w1, w2)),
-                "total_env_steps": total_steps,
-                "wall_time_s": elapsed(),
-                **method.state(),
-                **({} if stats is None else {"obs_stats": stats, "elite_norms": stacked_norms()}),
+                "elites": torch.stack(self.elites) if self.elites else torch.empty(0, genome_size(w1, w2)),
+                "total_env_steps": self.total_steps,
+                "wall_time_s": self.elapsed(),
+                **self.method.state(),
+                **({} if stats is None else {"obs_stats": stats, "elite_norms": self._stacked_norms()}),
             }
         )
 
-    def stacked_norms() -> torch.Tensor:
+    def _stacked_norms(self) -> torch.Tensor:
         """Each elite's (mean, inv_std), [2, G, n]."""
-        if not elite_norms:
-            return torch.empty(2, 0, spec.n_obs)
-        return torch.stack([torch.stack(list(part)) for part in zip(*elite_norms)])
+        if not self.elite_norms:
+            return torch.empty(2, 0, self.spec.n_obs)
+        return torch.stack([torch.stack(list(part)) for part in zip(*self.elite_norms)])
 
-    def rollout(genomes: torch.Tensor, seeds: np.ndarray, norm: observations.Norm | None, generation: int) -> Episodes:
-        at = f"generation {generation}"
-        if isinstance(algo, GAConfig):  # EC's genomes are masks written as +-inf (ec.mask_genomes)
-            run.require_finite(f"a genome of the population (algo.sigma={algo.sigma:g})", genomes, at)
-        result = evaluator(genomes, seeds) if norm is None else evaluator(genomes, seeds, norm)
-        run.require_finite("an episode return", result.returns, at)
-        since_row["steps"] += result.total_steps
-        return result
 
-    def slots_norm(norm: observations.Norm | None, count: int) -> observations.Norm | None:
-        """``norm`` for ``count`` slots ([count, n] each), or None."""
-        return None if norm is None else (norm[0].expand(count, -1), norm[1].expand(count, -1))
-
-    def joined(norms: list[observations.Norm | None]) -> observations.Norm | None:
-        """The slots' norms of one rollout's parts, in slot order (None: raw observations)."""
-        return None if norms[0] is None else (torch.cat([m for m, _ in norms]), torch.cat([s for _, s in norms]))
-
-    def reevaluation(pending: dict[str, Any]) -> tuple[torch.Tensor, np.ndarray, observations.Norm | None]:
-        genomes = ga.reevaluation_genomes(pending["population"], pending["candidates"], episodes)
-        seeds = episode_seeds(cfg.seed, pending["generation"], REEVALUATION, k * episodes)
-        return genomes, seeds, slots_norm(pending.get("obs_norm"), k * episodes)
-
-    evaluator = make_evaluator(cfg, spec, spn)
-    try:
-        for generation in range(start + 1, algo.generations + 1):
-            norm = None if stats is None else observations.policy_norm(stats)
-            genomes, seeds, norms = (
-                [population],
-                [episode_seeds(cfg.seed, generation, FITNESS, n)],
-                [slots_norm(norm, n)],
-            )
-            if pending is not None:
-                for part, into in zip(reevaluation(pending), (genomes, seeds, norms)):
-                    into.append(part)
-            result = rollout(torch.cat(genomes), np.concatenate(seeds), joined(norms), generation)
-            fitness_eps = result.part(0, n)
-            if pending is not None:
-                finish(pending, result.part(n, result.returns.numel()))
-            if stats is not None:
-                stats = observations.update(stats, observations.slot_moments(*fitness_eps.moments))
-            fitness = fitness_eps.returns
-            pool, candidates = method.elite_pool(population, fitness)
-            pending = {
-                "generation": generation,
-                "population": pool,
-                "fitness": fitness,
-                "steps": fitness_eps.total_steps,
-                "candidates": candidates,
-                **({} if norm is None else {"obs_norm": norm}),
-            }
-            population = method.advance(population, fitness, generator)
-            save(generation)
-        if pending is not None:  # the last generation's re-evaluation, alone
-            finish(pending, rollout(*reevaluation(pending), pending["generation"]))
-            pending = None
-            save(algo.generations)
-    finally:
-        evaluator.close()
-    return row
+def _slots_norm(norm: observations.Norm | None, count: int) -> observations.Norm | None:
+    """``norm`` for ``count`` slots ([count, n] each), or None."""
+    return None if norm is None else (norm[0].expand(count, -1), norm[1].expand(count, -1))
