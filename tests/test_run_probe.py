@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import ROOT, run_train, train_command
+from conftest import ROOT, run_train, train_command, wandb_exit_codes
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -187,3 +187,30 @@ def test_an_extended_ppo_run_writes_the_rows_of_a_straight_run(tmp_path):
 
     assert len(rows(straight)) == 20
     assert rows(extended) == rows(straight)
+
+
+def test_sigterm_under_the_ray_evaluator_ends_the_run_as_the_local_evaluator_does(tmp_path):
+    """SIGTERM on the driver of a local Ray cluster after generation 3: exit 143, the resume line alone (Ray's C++
+    handler would dump a stack and abort, rc 134), the W&B run closed with the exit code, a checkpoint to resume."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env.update(HOME=str(tmp_path), WANDB_SILENT="true")
+    run_dir, stderr = tmp_path / "run", tmp_path / "stderr.txt"
+    ray = [*BASE[:-2], "algo.generations=200", "torch_threads=1", "evaluator=ray", "evaluator.num_actors=1"]
+    ray += ["evaluator.num_cpus=1", "logger=wandb"]
+    with open(stderr, "wb") as err:
+        proc = subprocess.Popen(train_command(run_dir, *ray), cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=err)
+        deadline, log = time.time() + 300, run_dir / "train.log"  # a guard: Ray took 70 s to start under load
+        while not (log.exists() and "gen 3/" in log.read_text()) and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        assert proc.poll() is None, stderr.read_text()
+        before = stderr.stat().st_size  # Ray's start-up lines
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=120)
+    after = stderr.read_bytes()[before:].decode()
+    assert proc.returncode == 143, after
+    assert after.strip().splitlines() == [
+        f"stopped: interrupted by SIGTERM; {run_dir} holds a consistent checkpoint, resume with: python train.py "
+        f"{' '.join(ray)} hydra.run.dir={run_dir} resume=true"
+    ]
+    assert wandb_exit_codes(run_dir) == [143]
+    assert checkpoint.load(run_dir)["generation"] >= 3
