@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -214,3 +215,45 @@ def test_sigterm_under_the_ray_evaluator_ends_the_run_as_the_local_evaluator_doe
     ]
     assert wandb_exit_codes(run_dir) == [143]
     assert checkpoint.load(run_dir)["generation"] >= 3
+
+
+def closed_port() -> int:
+    """A localhost TCP port nothing listens on (a W&B server that cannot be reached, without a network)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.mark.parametrize(
+    "mode,key,sentence",
+    [
+        ("online", False, "error: logger.mode=online needs a W&B API key for {url} (WANDB_API_KEY, or the ~/.netrc "),
+        ("online", True, "error: logger.mode=online but the W&B server {url} cannot be reached (127.0.0.1:"),
+        ("auto", True, "logger.mode=auto: the W&B server {url} cannot be reached (127.0.0.1:"),
+    ],
+)
+def test_wandb_without_a_server_is_decided_before_the_run_starts(tmp_path, mode, key, sentence):
+    """logger=wandb with no key or no server: online is refused in one sentence before the run writes anything, auto
+    says it logs offline and runs (W&B itself waited about 100 s, then raised CommError)."""
+    url = f"http://127.0.0.1:{closed_port()}"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env.update(
+        HOME=str(tmp_path), WANDB_SILENT="true", WANDB_BASE_URL=url, **({"WANDB_API_KEY": "k" * 40} if key else {})
+    )
+    run_dir = tmp_path / "run"
+    proc = subprocess.run(
+        train_command(run_dir, *BASE, "algo.generations=1", "logger=wandb", f"logger.mode={mode}"),
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=90,  # a guard against W&B's own wait
+    )
+    assert "Traceback" not in proc.stderr
+    if mode == "online":
+        assert proc.returncode == 1 and last_line(proc).startswith(sentence.format(url=url)), proc.stderr
+        assert sorted(p.name for p in run_dir.iterdir()) == ["train.log"]  # no record, lock, env or W&B run
+    else:
+        assert proc.returncode == 0, proc.stderr
+        assert sentence.format(url=url) in (run_dir / "train.log").read_text()
+        assert list(run_dir.glob("wandb/offline-run-*/*.wandb"))
