@@ -14,6 +14,7 @@ import fcntl
 import logging
 import math
 import os
+import shlex
 import signal
 import sys
 from collections.abc import Iterator, Mapping
@@ -357,11 +358,11 @@ def signals_interrupt() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def resume_hint(run_dir: Path) -> str:
-    """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
+def resume_hint(run_dir: Path, resume: bool = True) -> str:
+    """The command line (shell-quoted) that resumes the run in ``run_dir`` (``resume=False``: starts it again):
+    this job's overrides plus the directory."""
     overrides: list[str] = []
     with contextlib.suppress(Exception):
         overrides = [o for o in _hydra_config().overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
-    return " ".join(
-        ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}", "resume=true"]
-    )
+    command = ["python", Path(sys.argv[0]).name or "train.py", *overrides, f"hydra.run.dir={run_dir}"]
+    return shlex.join(command + ["resume=true"] * resume)

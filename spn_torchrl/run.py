@@ -10,6 +10,7 @@ from typing import Any
 import torch
 from omegaconf import DictConfig
 
+from spn_torchrl import checkpoint
 from spn_torchrl.config import EVOLUTION, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
 from spn_torchrl.envs.mujoco_warp import torch_device
@@ -74,5 +75,10 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
                 return evolve_lockstep(typed, out)
             return train(typed, out, run_name(typed))
     except RunInterrupted as err:
-        err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)
+        name = checkpoint.CHECKPOINT_NAME
+        if (out / name).exists() or (typed.lockstep is not None and any(out.glob(f"*/{name}"))):
+            err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)
+        else:
+            hint = resume_hint(out, resume=False)
+            err.args = (f"{err.args[0]} before the first checkpoint; {out} holds none, start again with: {hint}",)
         raise

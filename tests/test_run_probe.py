@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import os
+import shlex
 import signal
 import socket
 import subprocess
@@ -257,3 +258,22 @@ def test_wandb_without_a_server_is_decided_before_the_run_starts(tmp_path, mode,
         assert proc.returncode == 0, proc.stderr
         assert sentence.format(url=url) in (run_dir / "train.log").read_text()
         assert list(run_dir.glob("wandb/offline-run-*/*.wandb"))
+
+
+def test_sigint_before_the_first_checkpoint_says_there_is_none_and_quotes_the_path(tmp_path):
+    """SIGINT once the run has started, long before its first generation ends, in a directory with spaces: the line
+    says no checkpoint was written and its command, pasted into a shell, starts the run again in that directory."""
+    run_dir = tmp_path / "my runs" / "a b"
+    slow = [*LONG[:2], "algo.population=5000", *LONG[3:]]
+    proc = subprocess.Popen(train_command(run_dir, *slow), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline, log = time.time() + 120, run_dir / "train.log"
+    while not (log.exists() and f" in {run_dir}" in log.read_text()) and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)  # "run NAME in DIR": the run holds its directory, its handlers are in
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and not (run_dir / "checkpoint.pt").exists(), err
+    line = err.decode().strip().splitlines()[-1]
+    prefix = f"stopped: interrupted by SIGINT before the first checkpoint; {run_dir} holds none, start again with: "
+    assert line.startswith(prefix), line
+    command = shlex.split(line.removeprefix(prefix))
+    assert command == ["python", "train.py", *slow, f"hydra.run.dir={run_dir}"]
