@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import ROOT, run_train, train_command, wandb_exit_codes
+from conftest import ROOT, run_train, sigterm_after_first_checkpoint, train_command, wandb_exit_codes
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -277,3 +277,42 @@ def test_sigint_before_the_first_checkpoint_says_there_is_none_and_quotes_the_pa
     assert line.startswith(prefix), line
     command = shlex.split(line.removeprefix(prefix))
     assert command == ["python", "train.py", *slow, f"hydra.run.dir={run_dir}"]
+
+
+def tool(*args: str) -> subprocess.CompletedProcess:
+    """``python -m spn_torchrl.TOOL ARGS``, as a user runs it."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_export_does_not_overwrite_the_runs_checkpoint(tmp_path):
+    run_train(tmp_path, *BASE, "algo.generations=1")
+    before = (tmp_path / "checkpoint.pt").read_bytes()
+    for target in ("checkpoint.pt", "progress.csv", ".hydra/config.yaml"):
+        proc = tool("spn_torchrl.export", str(tmp_path), str(tmp_path / target))
+        assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+        assert last_line(proc) == f"error: {tmp_path / target} is a file of the run in {tmp_path}: " + (
+            "write the export to another path"
+        )
+    assert (tmp_path / "checkpoint.pt").read_bytes() == before
+    assert tool("spn_torchrl.export", str(tmp_path), str(tmp_path / "elite.nir")).returncode == 0
+
+
+def test_a_non_finite_ppo_level_is_refused_in_one_sentence(tmp_path):
+    run_train(tmp_path / "run", *BASE, "algo.generations=1")
+    proc = tool("spn_torchrl.report", str(tmp_path / "run"), "--ppo-level", "nan", "--out", str(tmp_path / "report"))
+    assert proc.returncode == 1 and proc.stderr.strip() == "error: --ppo-level must be a finite return, got nan"
+    assert not (tmp_path / "report").exists()
+
+
+def test_play_on_a_run_without_a_finished_generation_says_so(tmp_path):
+    """SIGTERM while generation 1's elite is re-evaluated (beside generation 2's population): the checkpoint holds
+    generation 1's population, no elite yet."""
+    returncode, _ = sigterm_after_first_checkpoint(tmp_path, *LONG[:2], "algo.population=3000", *LONG[3:])
+    assert returncode == 143 and checkpoint.load(tmp_path)["elites"].shape[0] == 0
+    proc = tool("spn_torchrl.play", str(tmp_path), "--episodes", "1")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert last_line(proc) == (
+        f"error: {tmp_path} holds no finished generation yet (the first elite's re-evaluation had not ended when it "
+        "stopped): resume the run for at least one generation first"
+    )
