@@ -23,7 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from omegaconf import OmegaConf
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, config_dict, config_yaml
@@ -33,6 +34,7 @@ from spn_torchrl.records import (
     close_logger,
     logger_run_id,
     make_logger,
+    run_dir_problem,
     run_file_error,
     source_commit,
     trim_csv_logs,
@@ -200,6 +202,23 @@ def _check_budget(cfg: RunConfig, state: Mapping[str, Any], run_dir: Path, kind:
         asked, done, unit = cfg.algo.total_env_steps, state["iteration"] * cfg.algo.frames_per_batch, "env steps"
     if asked < done:
         raise ConfigError(f"{BUDGET[kind]}={asked} is below the {done} {unit} {run_dir} has done")
+
+
+class RunDirCheck(Callback):
+    """A Hydra callback (conf/config.yaml): a ``hydra.run.dir`` or ``hydra.sweep.dir`` that is a file or a dangling
+    symbolic link ends the job with one sentence before Hydra creates it (Hydra's own error is a traceback)."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config.hydra.run.dir, "hydra.run.dir")
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config.hydra.sweep.dir, "hydra.sweep.dir")
+
+    @staticmethod
+    def _check(path: str, field: str) -> None:
+        problem = run_dir_problem(Path(path))
+        if problem is not None:
+            sys.exit(f"error: {field}={path}: {problem}")
 
 
 def record_config(run_dir: Path, cfg: RunConfig) -> None:

@@ -118,6 +118,19 @@ def run_file_error(path: Path, err: OSError) -> RunFileError:
     return RunFileError(f"cannot write {path}: {reason}")
 
 
+def run_dir_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be a run directory, before anything is written there: it, or a folder above it, is a
+    file or a dangling symbolic link. None where it is a directory or can be made one."""
+    path = Path(path).absolute()
+    for where in (*reversed(path.parents), path):
+        if where.is_symlink() and not where.exists():
+            return f"{where} is a symbolic link to {os.readlink(where)}, which does not exist: expected a directory"
+        if where.exists() and not where.is_dir():
+            held = "" if where == path else f" (to hold {path})"
+            return f"{where} is a file, expected a directory{held}"
+    return None
+
+
 def save_torch_atomic(obj: Any, path: Path) -> None:
     """``torch.save`` through :func:`write_atomic`."""
     buf = io.BytesIO()

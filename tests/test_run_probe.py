@@ -316,3 +316,28 @@ def test_play_on_a_run_without_a_finished_generation_says_so(tmp_path):
         f"error: {tmp_path} holds no finished generation yet (the first elite's re-evaluation had not ended when it "
         "stopped): resume the run for at least one generation first"
     )
+
+
+@pytest.mark.parametrize("kind", ["file", "dangling link", "below a file"])
+def test_a_run_directory_that_is_a_file_or_a_dangling_link_is_one_sentence(tmp_path, kind):
+    """Hydra created the directory itself and raised FileExistsError or OSError as a traceback; the file or link
+    stays as it was."""
+    thing = tmp_path / "thing"
+    if kind == "dangling link":
+        thing.symlink_to(tmp_path / "nowhere")
+    else:
+        thing.write_text("the user's\n")
+    run_dir = thing / "run" if kind == "below a file" else thing
+    proc = run_train(run_dir, *BASE, "algo.generations=1", check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr + proc.stdout, proc.stderr
+    problem = {
+        "file": f"{thing} is a file, expected a directory",
+        "dangling link": f"{thing} is a symbolic link to {tmp_path / 'nowhere'}, which does not exist: expected a "
+        "directory",
+        "below a file": f"{thing} is a file, expected a directory (to hold {run_dir})",
+    }[kind]
+    assert proc.stderr.strip() == f"error: hydra.run.dir={run_dir}: {problem}"
+    if kind == "dangling link":
+        assert os.readlink(thing) == str(tmp_path / "nowhere")
+    else:
+        assert thing.read_text() == "the user's\n"
