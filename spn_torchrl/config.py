@@ -377,7 +377,7 @@ class LoggerConfig:
     entity: Optional[str] = None  # wandb: the W&B entity (None: the account's default); source: project
     # wandb: the W&B group (None: the sweep directory's name, so one sweep's runs share a group); source: project
     group: Optional[str] = None
-    # wandb: "auto" (offline when there are no credentials), "online", "offline", "disabled"; source: project
+    # wandb: "auto" (offline without an API key or a server that answers), "online", "offline", "disabled"; source: project
     mode: str = "auto"
     progress_bar: bool = False  # a progress bar on the terminal (issue 45); source: project
 

@@ -14,6 +14,7 @@ import fcntl
 import logging
 import math
 import os
+import shlex
 import signal
 import sys
 from collections.abc import Iterator, Mapping
@@ -22,7 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from omegaconf import OmegaConf
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
 
 from spn_torchrl import checkpoint
 from spn_torchrl.config import RunConfig, config_dict, config_yaml
@@ -32,6 +34,7 @@ from spn_torchrl.records import (
     close_logger,
     logger_run_id,
     make_logger,
+    run_dir_problem,
     run_file_error,
     source_commit,
     trim_csv_logs,
@@ -205,6 +208,23 @@ def _check_budget(cfg: RunConfig, state: Mapping[str, Any], run_dir: Path, kind:
         raise ConfigError(f"{BUDGET[kind]}={asked} is below the {done} {unit} {run_dir} has done")
 
 
+class RunDirCheck(Callback):
+    """A Hydra callback (conf/config.yaml): a ``hydra.run.dir`` or ``hydra.sweep.dir`` that is a file or a dangling
+    symbolic link ends the job with one sentence before Hydra creates it (Hydra's own error is a traceback)."""
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config.hydra.run.dir, "hydra.run.dir")
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        self._check(config.hydra.sweep.dir, "hydra.sweep.dir")
+
+    @staticmethod
+    def _check(path: str, field: str) -> None:
+        problem = run_dir_problem(Path(path))
+        if problem is not None:
+            sys.exit(f"error: {field}={path}: {problem}")
+
+
 def record_config(run_dir: Path, cfg: RunConfig) -> None:
     """``.hydra/config.yaml`` (the run's resolved config) and, inside a Hydra app, ``overrides.yaml`` and
     ``hydra.yaml``: what Hydra writes before the app starts, written here only once the run is accepted, so that a
@@ -362,12 +382,14 @@ def signals_interrupt() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
-def resume_hint(run_dir: Path) -> str:
-    """The command line that resumes the run in ``run_dir``: this job's overrides plus the directory."""
+def resume_hint(run_dir: Path, resume: bool = True) -> str:
+    """The command line (shell-quoted) that resumes the run in ``run_dir`` (``resume=False``: starts it again):
+    this job's overrides plus the directory."""
     overrides: list[str] = []
     script = Path(sys.argv[0]).name or "train.py"
     with contextlib.suppress(Exception):
         hydra = _hydra_config()
         overrides = [o for o in hydra.overrides.task if not o.startswith(("resume=", "hydra.run.dir="))]
         script = f"{hydra.job.name}.py"  # the script's name, also in a Slurm job (whose argv[0] is submitit's)
-    return " ".join(["python", script, *overrides, f"hydra.run.dir={run_dir}", "resume=true"])
+    command = ["python", script, *overrides, f"hydra.run.dir={run_dir}"]
+    return shlex.join(command + ["resume=true"] * resume)

@@ -2,16 +2,22 @@
 
 from __future__ import annotations
 
+import configparser
+import contextlib
 import csv
 import errno
+import functools
 import io
 import logging
 import netrc
 import os
+import socket
 import stat
 import subprocess
 import tempfile
 import threading
+import urllib.parse
+import urllib.request
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,7 +25,7 @@ from typing import Any
 import torch
 
 from spn_torchrl.config import RunConfig, config_dict
-from spn_torchrl.errors import RunFileError
+from spn_torchrl.errors import ConfigError, RunFileError
 
 log = logging.getLogger("spn_torchrl")
 _UMASK_LOCK = threading.Lock()
@@ -112,6 +118,19 @@ def run_file_error(path: Path, err: OSError) -> RunFileError:
     return RunFileError(f"cannot write {path}: {reason}")
 
 
+def run_dir_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be a run directory, before anything is written there: it, or a folder above it, is a
+    file or a dangling symbolic link. None where it is a directory or can be made one."""
+    path = Path(path).absolute()
+    for where in (*reversed(path.parents), path):
+        if where.is_symlink() and not where.exists():
+            return f"{where} is a symbolic link to {os.readlink(where)}, which does not exist: expected a directory"
+        if where.exists() and not where.is_dir():
+            held = "" if where == path else f" (to hold {path})"
+            return f"{where} is a file, expected a directory{held}"
+    return None
+
+
 def save_torch_atomic(obj: Any, path: Path) -> None:
     """``torch.save`` through :func:`write_atomic`."""
     buf = io.BytesIO()
@@ -192,20 +211,91 @@ def _csv_step(line: str) -> float | None:
         return None
 
 
+WANDB_PROBE_S = 3.0  # how long a TCP connect to the W&B server may take before the run decides it is unreachable
+WANDB_DEFAULT_URL = "https://api.wandb.ai"  # wandb's own default base URL
+
+
 def wandb_mode(requested: str) -> str:
-    """'auto' is online only where W&B credentials exist (env var or netrc), else offline: no network probe."""
-    if requested != "auto":
+    """The mode of the run's W&B logger, decided in at most :data:`WANDB_PROBE_S` s: ``offline`` and ``disabled``
+    as asked; ``online`` where there is an API key and the server answers a TCP connect, else
+    :class:`~spn_torchrl.errors.ConfigError` (one sentence: what is missing); ``auto`` (``WANDB_MODE`` if set,
+    else) offline without an API key, online where the server answers, else offline, logged in one sentence."""
+    asked = f"logger.mode={requested}"
+    if requested == "auto" and os.environ.get("WANDB_MODE"):
+        requested, asked = os.environ["WANDB_MODE"], f"WANDB_MODE={os.environ['WANDB_MODE']}"
+    if requested not in ("online", "auto"):
         return requested
-    if os.environ.get("WANDB_MODE"):
-        return os.environ["WANDB_MODE"]
-    if os.environ.get("WANDB_API_KEY"):
+    url = wandb_base_url()
+    return _wandb_decision(requested, asked, url, wandb_has_key(url))
+
+
+@functools.cache
+def _wandb_decision(mode: str, asked: str, url: str, has_key: bool) -> str:
+    """:func:`wandb_mode`'s decision, once per process (a run's check before any env starts, then its logger)."""
+    if not has_key:
+        if mode == "auto":
+            return "offline"
+        raise ConfigError(
+            f"{asked} needs a W&B API key for {url} (WANDB_API_KEY, or the ~/.netrc entry of wandb login): set one, "
+            "or use logger.mode=offline (upload later with wandb sync)"
+        )
+    reason = unreachable(url, WANDB_PROBE_S)
+    if reason is None:
         return "online"
-    try:
-        if netrc.netrc().authenticators("api.wandb.ai"):
-            return "online"
-    except (FileNotFoundError, netrc.NetrcParseError):
-        pass
+    if mode == "online":
+        raise ConfigError(
+            f"{asked} but the W&B server {url} cannot be reached ({reason}): check the network or WANDB_BASE_URL, "
+            "or use logger.mode=offline (upload later with wandb sync)"
+        )
+    log.warning("logger.mode=auto: the W&B server %s cannot be reached (%s): logging offline", url, reason)
     return "offline"
+
+
+def wandb_base_url() -> str:
+    """The W&B server this process would talk to: ``WANDB_BASE_URL``, else the ``base_url`` that ``wandb login
+    --host`` wrote into wandb's settings file, else :data:`WANDB_DEFAULT_URL`."""
+    if os.environ.get("WANDB_BASE_URL"):
+        return os.environ["WANDB_BASE_URL"].rstrip("/")
+    config_dir = Path(os.environ.get("WANDB_CONFIG_DIR") or Path.home() / ".config" / "wandb")
+    settings = configparser.ConfigParser()
+    with contextlib.suppress(OSError, configparser.Error):
+        settings.read(config_dir / "settings")
+        return settings.get("default", "base_url", fallback=WANDB_DEFAULT_URL).rstrip("/")
+    return WANDB_DEFAULT_URL
+
+
+def wandb_has_key(url: str) -> bool:
+    """Whether W&B has an API key for ``url``: ``WANDB_API_KEY``, or the netrc entry of its host."""
+    if os.environ.get("WANDB_API_KEY"):
+        return True
+    try:
+        return netrc.netrc().authenticators(urllib.parse.urlsplit(url).hostname or "") is not None
+    except (OSError, netrc.NetrcParseError):
+        return False
+
+
+def unreachable(url: str, timeout_s: float) -> str | None:
+    """Why a TCP connect to ``url``'s host (or the proxy that serves it) fails within ``timeout_s`` (name lookup
+    included), None where it succeeds."""
+    parts = urllib.parse.urlsplit(url)
+    host, port = parts.hostname or "", parts.port or (443 if parts.scheme == "https" else 80)
+    proxy = urllib.request.getproxies().get(parts.scheme)
+    if proxy and not urllib.request.proxy_bypass(host):
+        proxied = urllib.parse.urlsplit(proxy if "://" in proxy else f"http://{proxy}")
+        host, port = proxied.hostname or "", proxied.port or 80
+    outcome: list[str | None] = []
+
+    def connect() -> None:
+        try:
+            socket.create_connection((host, port), timeout=timeout_s).close()
+            outcome.append(None)
+        except OSError as err:
+            outcome.append(f"{host}:{port}: {err.strerror or err}")
+
+    probe = threading.Thread(target=connect, daemon=True)  # a name lookup ignores the socket's timeout
+    probe.start()
+    probe.join(timeout_s)
+    return outcome[0] if outcome else f"{host}:{port}: no answer within {timeout_s:g} s"
 
 
 def logger_run_id(logger) -> str | None:

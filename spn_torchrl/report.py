@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -41,6 +42,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> None:
     args = parse_args(argv)
+    if args.ppo_level is not None and not math.isfinite(args.ppo_level):
+        sys.exit(f"error: --ppo-level must be a finite return, got {args.ppo_level}")
     np.seterr(all="ignore")
     out = args.out or Path("report")
     try:

@@ -10,12 +10,13 @@ from typing import Any
 import torch
 from omegaconf import DictConfig
 
+from spn_torchrl import checkpoint
 from spn_torchrl.config import EVOLUTION, RunConfig, to_run_config
 from spn_torchrl.envs import check_backend, task_spec
 from spn_torchrl.envs.mujoco_warp import torch_device
 from spn_torchrl.errors import RunInterrupted, require
 from spn_torchrl.lifecycle import resume_hint, run_lock, signals_interrupt
-from spn_torchrl.records import run_file_error, sweep_name
+from spn_torchrl.records import run_file_error, sweep_name, wandb_mode
 from spn_torchrl.training.evolve import evolve
 from spn_torchrl.training.lockstep import evolve_lockstep
 from spn_torchrl.training.ppo import train_ppo
@@ -42,13 +43,15 @@ def run_name(cfg: RunConfig) -> str:
 
 
 def check(cfg: RunConfig) -> None:
-    """What the dataclasses cannot check alone, before any env or worker starts: the task exists and the
-    backend steps it."""
+    """What the dataclasses cannot check alone, before any env or worker starts: the task exists, the backend
+    steps it, and a W&B logger can be online (an API key, a server that answers) or goes offline."""
     task_spec(cfg.env.id)
     check_backend(cfg.env.backend, cfg.env.id)
     if cfg.env.backend == "mujoco_warp":
         require("mujoco_warp", "gpu")
         torch_device(cfg.env.device)  # a CUDA device this machine has
+    if cfg.logger.backend == "wandb":
+        wandb_mode(cfg.logger.mode)
 
 
 def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[str, Any]:
@@ -72,5 +75,10 @@ def run(cfg: DictConfig | RunConfig, run_dir: str | Path | None = None) -> dict[
                 return evolve_lockstep(typed, out)
             return train(typed, out, run_name(typed))
     except RunInterrupted as err:
-        err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)
+        name = checkpoint.CHECKPOINT_NAME
+        if (out / name).exists() or (typed.lockstep is not None and any(out.glob(f"*/{name}"))):
+            err.args = (f"{err.args[0]}; {out} holds a consistent checkpoint, resume with: {resume_hint(out)}",)
+        else:
+            hint = resume_hint(out, resume=False)
+            err.args = (f"{err.args[0]} before the first checkpoint; {out} holds none, start again with: {hint}",)
         raise

@@ -68,6 +68,28 @@ def sigterm_after_first_checkpoint(run_dir: Path, *overrides: str) -> tuple[int,
     return proc.returncode, err
 
 
+def wandb_exit_codes(run_dir: Path) -> list[int]:
+    """The exit codes an offline W&B run file records (its records are framed as a LevelDB log)."""
+    from wandb.proto import wandb_internal_pb2
+
+    (path,) = run_dir.glob("wandb/offline-run-*/*.wandb")
+    data, pos, block, pending, codes = path.read_bytes(), 7, 32768, b"", []
+    while pos + 7 <= len(data):
+        if block - pos % block < 7:  # a block's tail too short for a header is padding
+            pos += block - pos % block
+            continue
+        length, kind = int.from_bytes(data[pos + 4 : pos + 6], "little"), data[pos + 6]
+        pending += data[pos + 7 : pos + 7 + length]
+        pos += 7 + length
+        if kind in (1, 4):  # a full record, or the last piece of one
+            record = wandb_internal_pb2.Record()
+            record.ParseFromString(pending)
+            pending = b""
+            if record.HasField("exit"):
+                codes.append(record.exit.exit_code)
+    return codes
+
+
 @pytest.fixture(scope="session")
 def cartpole_run(tmp_path_factory) -> Path:
     """CartPole, 2 generations of 10 (2 elite candidates x 5 episodes)."""

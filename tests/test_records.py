@@ -1,4 +1,5 @@
 import os
+import socket
 import stat
 import tempfile
 from pathlib import Path
@@ -159,7 +160,7 @@ def test_trim_csv_logs_keeps_the_last_of_repeated_steps(tmp_path):
     "env,requested,expected",
     [
         ({}, "auto", "offline"),
-        ({"WANDB_API_KEY": "k"}, "auto", "online"),
+        ({"WANDB_API_KEY": "k"}, "auto", "online"),  # the server (a local socket) answers
         ({"WANDB_MODE": "disabled"}, "auto", "disabled"),
         ({"WANDB_API_KEY": "k"}, "offline", "offline"),
     ],
@@ -167,8 +168,10 @@ def test_trim_csv_logs_keeps_the_last_of_repeated_steps(tmp_path):
 def test_wandb_mode_auto_is_offline_without_credentials(monkeypatch, tmp_path, env, requested, expected):
     monkeypatch.setenv("HOME", str(tmp_path))  # no ~/.netrc
     monkeypatch.delenv("NETRC", raising=False)
-    for key in ("WANDB_API_KEY", "WANDB_MODE"):
+    for key in ("WANDB_API_KEY", "WANDB_MODE", "WANDB_BASE_URL"):
         monkeypatch.delenv(key, raising=False)
     for key, value in env.items():
         monkeypatch.setenv(key, value)
-    assert wandb_mode(requested) == expected
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        monkeypatch.setenv("WANDB_BASE_URL", f"http://127.0.0.1:{server.getsockname()[1]}")
+        assert wandb_mode(requested) == expected

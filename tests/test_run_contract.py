@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import ROOT, run_train, train_command
+from conftest import ROOT, run_train, train_command, wandb_exit_codes
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -175,28 +175,6 @@ def test_run_files_get_the_umasks_mode(tmp_path):
         os.umask(umask)
     for name in ("progress.csv", "checkpoint.pt"):
         assert (tmp_path / name).stat().st_mode & 0o777 == 0o640, name
-
-
-def wandb_exit_codes(run_dir: Path) -> list[int]:
-    """The exit codes an offline W&B run file records (its records are framed as a LevelDB log)."""
-    from wandb.proto import wandb_internal_pb2
-
-    (path,) = run_dir.glob("wandb/offline-run-*/*.wandb")
-    data, pos, block, pending, codes = path.read_bytes(), 7, 32768, b"", []
-    while pos + 7 <= len(data):
-        if block - pos % block < 7:  # a block's tail too short for a header is padding
-            pos += block - pos % block
-            continue
-        length, kind = int.from_bytes(data[pos + 4 : pos + 6], "little"), data[pos + 6]
-        pending += data[pos + 7 : pos + 7 + length]
-        pos += 7 + length
-        if kind in (1, 4):  # a full record, or the last piece of one
-            record = wandb_internal_pb2.Record()
-            record.ParseFromString(pending)
-            pending = b""
-            if record.HasField("exit"):
-                codes.append(record.exit.exit_code)
-    return codes
 
 
 PPO = ["algo=dpn_ppo", "algo.frames_per_batch=200", "algo.minibatch_size=50", "algo.epochs=2", "algo.eval_episodes=2"]

@@ -4,8 +4,11 @@ subprocess run of train.py with real processes, signals and files)."""
 
 from __future__ import annotations
 
+import csv
 import os
+import shlex
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -13,7 +16,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import ROOT, run_train, train_command
+from conftest import ROOT, run_train, sigterm_after_first_checkpoint, train_command, wandb_exit_codes
 
 from spn_torchrl import checkpoint
 from spn_torchrl.records import read_progress
@@ -168,3 +171,173 @@ def test_a_non_finite_value_ends_the_run_in_one_sentence(tmp_path, method, what,
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert last_line(proc) == f"error: {what} became NaN or infinite in {sentence}"
     assert not (tmp_path / "progress.csv").exists()
+
+
+def test_an_extended_ppo_run_writes_the_rows_of_a_straight_run(tmp_path):
+    """2000 steps resumed to 4000 with eval_interval=3 write the rows of a straight 4000-step run, energy counts
+    included: iteration 10, the end of the first segment, is not evaluated in either."""
+    overrides = [*PPO, "env=cartpole", "algo.eval_interval=3", "seed=2", *ONE]
+    straight, extended = tmp_path / "straight", tmp_path / "extended"
+    run_train(straight, *overrides, "algo.total_env_steps=4000")
+    run_train(extended, *overrides, "algo.total_env_steps=2000")
+    run_train(extended, *overrides, "algo.total_env_steps=4000", "resume=true")
+    timing = {"wall_time_s", "steps_per_s"}
+
+    def rows(run_dir: Path) -> list[dict[str, str]]:  # the text of each cell: bit for bit, NaN equal to NaN
+        with open(run_dir / "progress.csv", newline="") as f:
+            return [{k: v for k, v in row.items() if k not in timing} for row in csv.DictReader(f)]
+
+    assert len(rows(straight)) == 20
+    assert rows(extended) == rows(straight)
+
+
+def test_sigterm_under_the_ray_evaluator_ends_the_run_as_the_local_evaluator_does(tmp_path):
+    """SIGTERM on the driver of a local Ray cluster after generation 3: exit 143, the resume line alone (Ray's C++
+    handler would dump a stack and abort, rc 134), the W&B run closed with the exit code, a checkpoint to resume."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env.update(HOME=str(tmp_path), WANDB_SILENT="true")
+    run_dir, stderr = tmp_path / "run", tmp_path / "stderr.txt"
+    ray = [*BASE[:-2], "algo.generations=200", "torch_threads=1", "evaluator=ray", "evaluator.num_actors=1"]
+    ray += ["evaluator.num_cpus=1", "logger=wandb"]
+    with open(stderr, "wb") as err:
+        proc = subprocess.Popen(train_command(run_dir, *ray), cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=err)
+        deadline, log = time.time() + 300, run_dir / "train.log"  # a guard: Ray took 70 s to start under load
+        while not (log.exists() and "gen 3/" in log.read_text()) and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.05)
+        assert proc.poll() is None, stderr.read_text()
+        before = stderr.stat().st_size  # Ray's start-up lines
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=120)
+    after = stderr.read_bytes()[before:].decode()
+    assert proc.returncode == 143, after
+    assert after.strip().splitlines() == [
+        f"stopped: interrupted by SIGTERM; {run_dir} holds a consistent checkpoint, resume with: python train.py "
+        f"{' '.join(ray)} hydra.run.dir={run_dir} resume=true"
+    ]
+    assert wandb_exit_codes(run_dir) == [143]
+    assert checkpoint.load(run_dir)["generation"] >= 3
+
+
+def closed_port() -> int:
+    """A localhost TCP port nothing listens on (a W&B server that cannot be reached, without a network)."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.mark.parametrize(
+    "mode,key,sentence",
+    [
+        ("online", False, "error: logger.mode=online needs a W&B API key for {url} (WANDB_API_KEY, or the ~/.netrc "),
+        ("online", True, "error: logger.mode=online but the W&B server {url} cannot be reached (127.0.0.1:"),
+        ("auto", True, "logger.mode=auto: the W&B server {url} cannot be reached (127.0.0.1:"),
+    ],
+)
+def test_wandb_without_a_server_is_decided_before_the_run_starts(tmp_path, mode, key, sentence):
+    """logger=wandb with no key or no server: online is refused in one sentence before the run writes anything, auto
+    says it logs offline and runs (W&B itself waited about 100 s, then raised CommError)."""
+    url = f"http://127.0.0.1:{closed_port()}"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env.update(
+        HOME=str(tmp_path), WANDB_SILENT="true", WANDB_BASE_URL=url, **({"WANDB_API_KEY": "k" * 40} if key else {})
+    )
+    run_dir = tmp_path / "run"
+    proc = subprocess.run(
+        train_command(run_dir, *BASE, "algo.generations=1", "logger=wandb", f"logger.mode={mode}"),
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=90,  # a guard against W&B's own wait
+    )
+    assert "Traceback" not in proc.stderr
+    if mode == "online":
+        assert proc.returncode == 1 and last_line(proc).startswith(sentence.format(url=url)), proc.stderr
+        assert sorted(p.name for p in run_dir.iterdir()) == ["train.log"]  # no record, lock, env or W&B run
+    else:
+        assert proc.returncode == 0, proc.stderr
+        assert sentence.format(url=url) in (run_dir / "train.log").read_text()
+        assert list(run_dir.glob("wandb/offline-run-*/*.wandb"))
+
+
+def test_sigint_before_the_first_checkpoint_says_there_is_none_and_quotes_the_path(tmp_path):
+    """SIGINT once the run has started, long before its first generation ends, in a directory with spaces: the line
+    says no checkpoint was written and its command, pasted into a shell, starts the run again in that directory."""
+    run_dir = tmp_path / "my runs" / "a b"
+    slow = [*LONG[:2], "algo.population=5000", *LONG[3:]]
+    proc = subprocess.Popen(train_command(run_dir, *slow), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline, log = time.time() + 120, run_dir / "train.log"
+    while not (log.exists() and f" in {run_dir}" in log.read_text()) and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.05)  # "run NAME in DIR": the run holds its directory, its handlers are in
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and not (run_dir / "checkpoint.pt").exists(), err
+    line = err.decode().strip().splitlines()[-1]
+    prefix = f"stopped: interrupted by SIGINT before the first checkpoint; {run_dir} holds none, start again with: "
+    assert line.startswith(prefix), line
+    command = shlex.split(line.removeprefix(prefix))
+    assert command == ["python", "train.py", *slow, f"hydra.run.dir={run_dir}"]
+
+
+def tool(*args: str) -> subprocess.CompletedProcess:
+    """``python -m spn_torchrl.TOOL ARGS``, as a user runs it."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_export_does_not_overwrite_the_runs_checkpoint(tmp_path):
+    run_train(tmp_path, *BASE, "algo.generations=1")
+    before = (tmp_path / "checkpoint.pt").read_bytes()
+    for target in ("checkpoint.pt", "progress.csv", ".hydra/config.yaml"):
+        proc = tool("spn_torchrl.export", str(tmp_path), str(tmp_path / target))
+        assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+        assert last_line(proc) == f"error: {tmp_path / target} is a file of the run in {tmp_path}: " + (
+            "write the export to another path"
+        )
+    assert (tmp_path / "checkpoint.pt").read_bytes() == before
+    assert tool("spn_torchrl.export", str(tmp_path), str(tmp_path / "elite.nir")).returncode == 0
+
+
+def test_a_non_finite_ppo_level_is_refused_in_one_sentence(tmp_path):
+    run_train(tmp_path / "run", *BASE, "algo.generations=1")
+    proc = tool("spn_torchrl.report", str(tmp_path / "run"), "--ppo-level", "nan", "--out", str(tmp_path / "report"))
+    assert proc.returncode == 1 and proc.stderr.strip() == "error: --ppo-level must be a finite return, got nan"
+    assert not (tmp_path / "report").exists()
+
+
+def test_play_on_a_run_without_a_finished_generation_says_so(tmp_path):
+    """SIGTERM while generation 1's elite is re-evaluated (beside generation 2's population): the checkpoint holds
+    generation 1's population, no elite yet."""
+    returncode, _ = sigterm_after_first_checkpoint(tmp_path, *LONG[:2], "algo.population=3000", *LONG[3:])
+    assert returncode == 143 and checkpoint.load(tmp_path)["elites"].shape[0] == 0
+    proc = tool("spn_torchrl.play", str(tmp_path), "--episodes", "1")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert last_line(proc) == (
+        f"error: {tmp_path} holds no finished generation yet (the first elite's re-evaluation had not ended when it "
+        "stopped): resume the run for at least one generation first"
+    )
+
+
+@pytest.mark.parametrize("kind", ["file", "dangling link", "below a file"])
+def test_a_run_directory_that_is_a_file_or_a_dangling_link_is_one_sentence(tmp_path, kind):
+    """Hydra created the directory itself and raised FileExistsError or OSError as a traceback; the file or link
+    stays as it was."""
+    thing = tmp_path / "thing"
+    if kind == "dangling link":
+        thing.symlink_to(tmp_path / "nowhere")
+    else:
+        thing.write_text("the user's\n")
+    run_dir = thing / "run" if kind == "below a file" else thing
+    proc = run_train(run_dir, *BASE, "algo.generations=1", check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr + proc.stdout, proc.stderr
+    problem = {
+        "file": f"{thing} is a file, expected a directory",
+        "dangling link": f"{thing} is a symbolic link to {tmp_path / 'nowhere'}, which does not exist: expected a "
+        "directory",
+        "below a file": f"{thing} is a file, expected a directory (to hold {run_dir})",
+    }[kind]
+    assert proc.stderr.strip() == f"error: hydra.run.dir={run_dir}: {problem}"
+    if kind == "dangling link":
+        assert os.readlink(thing) == str(tmp_path / "nowhere")
+    else:
+        assert thing.read_text() == "the user's\n"

@@ -12,8 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
-from test_run_contract import wandb_exit_codes
+from conftest import ROOT, wandb_exit_codes
 
 from spn_torchrl.records import read_progress
 

@@ -10,8 +10,12 @@ Only this module imports Ray, and only :func:`spn_torchrl.evaluation.ray_evaluat
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -100,16 +104,34 @@ def connect(evaluator: RayEvaluatorConfig) -> bool:
         return False
     # ship_code: Ray uploads this package for the job's workers (only possible when this process joins)
     runtime_env = {"py_modules": [str(Path(__file__).resolve().parent)]} if evaluator.ship_code else None
-    try:
-        if evaluator.address is None:
-            ray.init(num_cpus=evaluator.num_cpus, include_dashboard=False, runtime_env=runtime_env)
-        else:
-            ray.init(address=evaluator.address, runtime_env=runtime_env)
-    except ConnectionError as err:
-        raise EvaluatorError(
-            f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}"
-        ) from None
+    with kept_signal_handlers():
+        try:
+            if evaluator.address is None:
+                ray.init(num_cpus=evaluator.num_cpus, include_dashboard=False, runtime_env=runtime_env)
+            else:
+                ray.init(address=evaluator.address, runtime_env=runtime_env)
+        except ConnectionError as err:
+            raise EvaluatorError(
+                f"could not reach the Ray cluster at evaluator.address={evaluator.address!r}: {err}"
+            ) from None
     return True
+
+
+@contextlib.contextmanager
+def kept_signal_handlers() -> Iterator[None]:
+    """SIGINT and SIGTERM keep this process's handlers through the body (in the main thread). ``ray.init`` sets
+    its own: a Python SIGTERM handler that exits, and its core worker's C++ failure handler, which dumps a stack
+    and aborts (rc 134) over Python's; setting ours again puts the run's handlers (a signalled run ends after its
+    checkpoint, exit 128 + signal) back in front of both."""
+    sigs = (signal.SIGINT, signal.SIGTERM)
+    main = threading.current_thread() is threading.main_thread()
+    previous = {sig: signal.getsignal(sig) for sig in sigs} if main else {}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            if handler is not None:  # None: a handler not set from Python, which Python cannot set again
+                signal.signal(sig, handler)
 
 
 def make_ray_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> RayEvaluator:

@@ -57,6 +57,11 @@ def load_elite(run_dir: str | Path, generation: int | None = None) -> Elite:
     cfg = from_saved(state["config"])
     elites = state["elites"]
     count = elites.shape[0]
+    if count == 0:
+        raise SpnError(
+            f"{run_dir} holds no finished generation yet (the first elite's re-evaluation had not ended when it "
+            "stopped): resume the run for at least one generation first"
+        )
     generation = count if generation is None else generation
     if not 1 <= generation <= count:
         raise SpnError(f"--generation must be in [1, {count}] for {run_dir}, got {generation}")

@@ -42,7 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
+from spn_torchrl.checkpoint import CHECKPOINT_NAME
 from spn_torchrl.errors import SpnError, require
+from spn_torchrl.lifecycle import COMMIT_NAME, LOCK_NAME, PROGRESS_NAME, RECORD_DIR
 from spn_torchrl.records import run_file_error
 from spn_torchrl.tools.elite import Elite, load_elite
 
@@ -124,12 +126,28 @@ def export(
     elite = load_elite(run_dir, generation)
     graph = to_nir(elite, fold_r=fold_r)
     out = Path(out)
+    refuse_run_file(Path(run_dir), out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         nir.write(out, graph)
     except OSError as err:  # a directory at ``out``, a read-only or full disk: one sentence naming the path
         raise run_file_error(out, err) from None
     return out
+
+
+# what a run writes in its directory (lifecycle, checkpoint, Hydra's log, the loggers): never an export's target
+RUN_FILES = (CHECKPOINT_NAME, PROGRESS_NAME, COMMIT_NAME, LOCK_NAME, "train.log")
+RUN_DIRS = (RECORD_DIR, "logs", "wandb")
+
+
+def refuse_run_file(run_dir: Path, out: Path) -> None:
+    """SpnError where ``out`` is one of the files the run in ``run_dir`` wrote (its checkpoint, its record)."""
+    try:
+        inside = out.resolve().relative_to(run_dir.resolve())
+    except ValueError:
+        return
+    if str(inside) in RUN_FILES or (inside.parts and inside.parts[0] in RUN_DIRS):
+        raise SpnError(f"{out} is a file of the run in {run_dir}: write the export to another path")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -278,7 +278,9 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
             done = data["next", "done"].squeeze(-1)
             finished = data["next", "episode_reward"].squeeze(-1)[done]
             eval_return = math.nan
-            if iteration % algo.eval_interval == 0 or iteration == iterations:
+            # every eval_interval-th iteration only: which iterations are evaluated must not depend on the budget,
+            # so a run extended to a larger budget writes the rows (and energy counts) of a straight run
+            if iteration % algo.eval_interval == 0:
                 returns, samples = evaluate_policy(
                     actor, eval_env, spec.max_episode_steps, episode_seed(cfg.seed, iteration, EVALUATION)
                 )
