@@ -76,30 +76,36 @@ def table(task: str, variant: str, episodes: int, reference: Path) -> dict[str, 
     return ordered
 
 
-def start_from(env, qpos: np.ndarray, qvel: np.ndarray) -> None:
-    """Make every reset of ``env`` (gym_v2 or mujoco_batch_mj210) put its slots in ``qpos``, ``qvel``."""
-    if hasattr(env, "set_state"):  # gym_v2: Gym's own set_state in the workers
+def start_from(env, backend: str, qpos: np.ndarray, qvel: np.ndarray) -> None:
+    """Make every reset of ``env`` (``backend`` gym_v2 or mujoco_batch_mj210) put its slots in ``qpos``, ``qvel``."""
+    if backend == "gym_v2":  # Gym's own set_state in the workers
         env._reset_slots = lambda ids: env.set_state(qpos, qvel)
     else:
         env._reset_slots = lambda ids: (env.sims.reset(None, qpos, qvel), env._write_obs(None))
 
 
 def same_states(task: str, variant: str, episodes: int, reference: Path) -> None:
-    """Print each published elite's mean return from the same ``episodes`` initial states on gym_v2 and
-    mujoco_batch_mj210, and the largest difference of one episode's return."""
+    """Print each published elite's mean return from the same ``episodes`` initial states on gym_v2,
+    mujoco_batch_mj210 and mujoco_batch, each v5 backend's largest difference of one episode's return from gym_v2,
+    and the means over the elites."""
     npz = reference / f"{task}-v2_SPN_{variant}_gen100_elites.npz"
     spec = task_spec(f"{task}-v5")
-    v2 = make_batched_env(MJ210_TASKS[spec.env_id], episodes, backend="gym_v2")
-    fast = make_batched_env(spec.env_id, episodes, backend="mujoco_batch_mj210")
+    envs = {"gym_v2": make_batched_env(MJ210_TASKS[spec.env_id], episodes, backend="gym_v2")}
+    for backend in ("mujoco_batch_mj210", "mujoco_batch"):
+        envs[backend] = make_batched_env(spec.env_id, episodes, backend=backend)
     try:
-        m, rng = fast.model, np.random.default_rng(0)
+        m, rng = envs["mujoco_batch"].model, np.random.default_rng(0)
         qpos = m.qpos0 + rng.uniform(-0.1, 0.1, (episodes, m.nq))
         qvel = rng.uniform(-0.1, 0.1, (episodes, m.nv))
-        start_from(v2, qpos, qvel)
-        start_from(fast, qpos, qvel)
-        print(f"\n{task} {variant}-GA, published elites from the same {episodes} initial states")
-        print("| published seed | gym_v2 | mujoco_batch_mj210 | max abs difference of an episode's return |")
-        print("|---|---|---|---|")
+        for backend, env in envs.items():
+            start_from(env, backend, qpos, qvel)
+        print(f"\n{task} {variant}-GA, published elites from the same {episodes} initial states (mean return)")
+        print(
+            "| published seed | gym_v2 | mujoco_batch_mj210 | mujoco_batch | max abs episode difference from gym_v2: "
+            "mj210, mujoco_batch |"
+        )
+        print("|---|---|---|---|---|")
+        means: dict[str, list[float]] = {b: [] for b in envs}
         for s, (genome, w1, w2) in load_published(npz).items():
             spn = build_spn(
                 torch.as_tensor(w1),
@@ -110,12 +116,20 @@ def same_states(task: str, variant: str, episodes: int, reference: Path) -> None
                 action_high=spec.action_high,
             )
             genomes = torch.as_tensor(genome, dtype=torch.float32).reshape(1, -1).expand(episodes, -1)
-            a = PopulationEvaluator(v2, spn, spec.max_episode_steps)(genomes, 0).returns.numpy()
-            b = PopulationEvaluator(fast, spn, spec.max_episode_steps)(genomes, 0).returns.numpy()
-            print(f"| {s} | {a.mean():.2f} | {b.mean():.2f} | {np.abs(a - b).max():.2g} |")
+            returns = {
+                b: PopulationEvaluator(env, spn, spec.max_episode_steps)(genomes, 0).returns.numpy()
+                for b, env in envs.items()
+            }
+            for b, r in returns.items():
+                means[b].append(float(r.mean()))
+            diffs = [
+                f"{np.abs(returns[b] - returns['gym_v2']).max():.2g}" for b in ("mujoco_batch_mj210", "mujoco_batch")
+            ]
+            print(f"| {s} | " + " | ".join(f"{r.mean():.2f}" for r in returns.values()) + f" | {', '.join(diffs)} |")
+        print("| mean | " + " | ".join(f"{np.mean(v):.2f}" for v in means.values()) + " | |")
     finally:
-        v2.close()
-        fast.close()
+        for env in envs.values():
+            env.close()
 
 
 def task_label(task: str, variants: list[str]) -> str:
