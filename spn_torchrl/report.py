@@ -30,6 +30,14 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         help="write README.md: the runs (finished ones only) against the paper's published figures, claim by claim",
     )
     parser.add_argument(
+        "--v2",
+        nargs="+",
+        default=[],
+        metavar="PATH",
+        help="with --reproduction: runs on MuJoCo 2.1's dynamics (env.backend=gym_v2 or mujoco_batch_mj210), "
+        "judged beside the v5 runs",
+    )
+    parser.add_argument(
         "--wandb",
         action="store_true",
         help="also log figures and tables to W&B (automatic when every run used logger=wandb)",
@@ -46,9 +54,11 @@ def main(argv: Sequence[str] | None = None) -> None:
         sys.exit(f"error: --ppo-level must be a finite return, got {args.ppo_level}")
     np.seterr(all="ignore")
     out = args.out or Path("report")
+    if args.v2 and not args.reproduction:
+        sys.exit("error: --v2 goes with --reproduction (the claims table on v2 beside v5)")
     try:
         if args.reproduction:
-            result = build_reproduction(args.paths, out, args.ppo_level)
+            result = build_reproduction(args.paths, out, args.ppo_level, v2=args.v2)
         else:
             result = build_report(args.paths, out, args.ppo_level)
             if args.wandb or result["wandb_projects"]:

@@ -30,9 +30,11 @@ def write_run(
     steps_per_row: int = 1000,
     total_env_steps: int | None = None,
     snn_schema: str = "old",
+    backend: str | None = None,
 ) -> Path:
     """A run directory ``root/{env}__{algo}__{seed}`` whose rows hold ``returns``; ``generations`` is the budget
-    (default: as many as rows), ``layout`` "hydra" (.hydra/config.yaml) or "flat" (config.yaml)."""
+    (default: as many as rows), ``layout`` "hydra" (.hydra/config.yaml) or "flat" (config.yaml), ``backend`` the
+    env.backend stated (none by default)."""
     run = root / f"{env}__{algo}__{seed}"
     run.mkdir(parents=True)
     generations = len(returns) if generations is None else generations
@@ -40,7 +42,9 @@ def write_run(
     budget = f"  generations: {generations}\n" if kind == "ga" else f"  total_env_steps: {total_env_steps}\n"
     config = (
         f"algo:\n  name: {algo}\n  kind: {kind}\n{budget}  population: 200\n  elite_candidates: 10\n"
-        f"  elite_episodes: 10\n{snn}env:\n  name: {env}\n  id: {env_id}\nseed: {seed}\n"
+        f"  elite_episodes: 10\n{snn}env:\n  name: {env}\n  id: {env_id}\n"
+        + (f"  backend: {backend}\n" if backend else "")
+        + f"seed: {seed}\n"
     )
     (run / ".hydra" if layout == "hydra" else run).mkdir(exist_ok=True)
     (run / (".hydra/config.yaml" if layout == "hydra" else "config.yaml")).write_text(config)

@@ -10,8 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic_runs import write_run
 
 from spn_torchrl.analysis.report import build_report
+from spn_torchrl.analysis.stats import p_text, welch
 
 pytestmark = pytest.mark.slow  # end-to-end runs in a subprocess
 
@@ -148,3 +150,16 @@ def test_runs_logged_to_wandb_send_the_report_there(multirun, tmp_path):
             config.read_text().replace("backend: csv\n  project: spn_torchrl", "backend: wandb\n  project: my_proj")
         )
     assert build_report([copy], tmp_path / "b")["wandb_projects"] == ["my_proj"]
+
+
+def test_methods_of_a_task_are_tested_against_each_other(tmp_path):
+    """Welch's test of each pair of methods with 2 seeds or more (conn_ec's single seed makes no pair)."""
+    ga, weights = [100.0, 110.0, 120.0], [150.0, 170.0, 160.0]
+    for seed in range(3):
+        write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "conn_ga", seed, [1.0, ga[seed]])
+        write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "weights_ga", seed, [1.0, weights[seed]])
+    write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "conn_ec", 0, [1.0, 300.0])
+    md = Path(build_report([tmp_path / "runs"], tmp_path / "out")["markdown"]).read_text()
+    p = welch(110.0, 10.0, 3, 160.0, 10.0, 3).p
+    assert f"| conn_ga vs weights_ga | 3 / 3 | 110.00 - 160.00 = -50.00 | {p_text(p)} |" in md
+    assert "conn_ec vs" not in md and "vs conn_ec" not in md

@@ -15,6 +15,7 @@ from spn_torchrl.analysis.energy import sig
 from spn_torchrl.analysis.reproduction import COMMAND, PAPER_R_SOURCE, build_reproduction, ppo_seeds
 from spn_torchrl.analysis.runs import find_runs
 from spn_torchrl.analysis.stats import one_value, p_text, sample_sd, verdict, welch
+from spn_torchrl.errors import SpnError
 
 ROOT = Path(__file__).resolve().parents[1]
 CONN_FINAL = [2700.0, 2800.0, 2900.0]
@@ -223,12 +224,16 @@ def test_the_committed_reproduction_is_what_its_committed_runs_give(tmp_path):
     """reproduction/README.md and report.json are the report command's output over reproduction/runs, never edited
     by hand nor left behind by a run added without regenerating them; every committed run reached its budget."""
     committed = ROOT / "reproduction"
-    result = build_reproduction([committed / "runs"], tmp_path, preface=committed / "PREFACE.md")
+    result = build_reproduction(
+        [committed / "runs"], tmp_path, preface=committed / "PREFACE.md", v2=[committed / "runs_v2"]
+    )
     assert result["stopped"] == []
-    for run in (committed / "runs").iterdir():
+    for run in [*(committed / "runs").iterdir(), *(committed / "runs_v2").iterdir()]:
         assert sorted(p.name for p in run.iterdir()) == ["COMMIT", "config.yaml", "progress.csv"], run
         assert all(p.stat().st_size <= MAX_BYTES for p in run.iterdir()), run
     assert (tmp_path / "README.md").read_text() == (committed / "README.md").read_text(), f"run: {COMMAND}"
+    for figure in (committed / "v2").glob("*.png"):
+        assert (tmp_path / "v2" / figure.name).is_file(), figure
     assert json.loads((tmp_path / "report.json").read_text()) == json.loads((committed / "report.json").read_text())
 
 
@@ -290,3 +295,55 @@ def test_seeds_beyond_0_to_9_alone_make_no_paper_protocol_row(tmp_path):
     write_run(runs, "cartpole", "CartPole-v1", "conn_ga", 12, curve(500.0, 10))
     md = Path(build_reproduction([runs], tmp_path / "again")["markdown"]).read_text()
     assert "Finished runs of tasks with no run of seeds 0-9, not reported: cartpole conn_ga seeds [12]." in md
+
+
+def test_v2_runs_are_judged_beside_v5_in_their_own_columns_and_sections(tmp_path):
+    """HalfCheetah: Connections-GA ahead of Weights-GA on v5, behind on v2 (mujoco_batch_mj210); Swimmer-v2
+    (gym_v2, named swimmer_v2): Connections-GA alone. Each simulator's claims are judged on its own runs, the v2
+    tasks under the paper's names."""
+    v5, v2 = tmp_path / "runs", tmp_path / "runs_v2"
+    for seed in range(3):
+        write_run(v5, "halfcheetah", "HalfCheetah-v5", "conn_ga", seed, curve(3000.0 + seed), backend="mujoco_batch")
+        write_run(v5, "halfcheetah", "HalfCheetah-v5", "weights_ga", seed, curve(2000.0 + seed))
+        args = {"backend": "mujoco_batch_mj210"}
+        write_run(v2, "halfcheetah", "HalfCheetah-v5", "conn_ga", seed, curve(1500.0 + seed), **args)
+        write_run(v2, "halfcheetah", "HalfCheetah-v5", "weights_ga", seed, curve(2500.0 + seed), **args)
+        write_run(v2, "swimmer_v2", "Swimmer-v2", "conn_ga", seed, curve(300.0 + seed), backend="gym_v2")
+    result = build_reproduction([v5], tmp_path / "out", v2=[v2])
+    beats = {c["claim"]: c for c in result["claims"]}
+    beats_v2 = {c["claim"]: c for c in result["v2"]["claims"]}
+    claim = "Connections-GA beats Weights-GA on HalfCheetah (generation 100)"
+    assert beats[claim]["status"] == "confirmed" and beats_v2[claim]["status"] == "not confirmed"
+    assert beats_v2[claim]["ours"].startswith("1501 vs 2501")
+    assert beats_v2["Connections-GA beats Weights-GA on Swimmer (generation 100)"]["status"] == "not yet run"
+    assert beats_v2["Connections-GA reaches the PPO level R on Swimmer"]["status"] == "confirmed"  # 302 > 107.52
+    assert sorted(result["v2"]["tasks"]) == ["halfcheetah", "swimmer"]
+    md = Path(result["markdown"]).read_text()
+    assert "| claim | paper | ours, v5 | status, v5 | ours, v2 | status, v2 |" in md
+    assert "## HalfCheetah on v2 dynamics (HalfCheetah-v5, n=17, m=6)" in md
+    assert "## Swimmer on v2 dynamics (Swimmer-v2, n=8, m=2)" in md
+    assert "env.backend=gym_v2, mujoco_batch_mj210" in md
+    assert "![learning curves](v2/halfcheetah.png)" in md and (tmp_path / "out" / "v2" / "halfcheetah.png").is_file()
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["v2"]["claims"] == result["v2"]["claims"]
+    alone = build_reproduction([v5], tmp_path / "alone")  # without --v2: the v5 table as before
+    assert "ours, v2" not in Path(alone["markdown"]).read_text() and alone["v2"] is None
+
+
+def test_a_run_on_the_other_simulator_is_refused_in_one_sentence(tmp_path):
+    v5, v2 = tmp_path / "runs", tmp_path / "runs_v2"
+    write_run(v5, "halfcheetah", "HalfCheetah-v5", "conn_ga", 0, curve(3000.0), backend="mujoco_batch_mj210")
+    write_run(v2, "halfcheetah", "HalfCheetah-v5", "conn_ga", 0, curve(3000.0), backend="mujoco_batch")
+    with pytest.raises(
+        SpnError, match="runs on env.backend=mujoco_batch_mj210, but .* v5 runs only: pass v2 runs with --v2"
+    ):
+        build_reproduction([v5], tmp_path / "a")
+    (v5 / "halfcheetah__conn_ga__0").rename(tmp_path / "moved")
+    write_run(v5, "halfcheetah", "HalfCheetah-v5", "conn_ga", 0, curve(3000.0))
+    with pytest.raises(SpnError, match="runs on env.backend=mujoco_batch, but .* v2 runs only"):
+        build_reproduction([v5], tmp_path / "b", v2=[v2])
+    cmd = [sys.executable, "-m", "spn_torchrl.report", str(v5), "--v2", str(v2)]
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    assert (
+        done.returncode == 1
+        and done.stderr.strip() == "error: --v2 goes with --reproduction (the claims table on v2 beside v5)"
+    )

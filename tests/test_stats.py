@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from spn_torchrl.analysis.stats import betainc, one_value, p_text, sample_sd, t_cdf, verdict, welch
+from spn_torchrl.analysis.stats import betainc, one_value, p_text, paired, sample_sd, t_cdf, verdict, welch
 
 
 @pytest.mark.parametrize(
@@ -78,6 +78,16 @@ def test_one_value_against_a_sample_is_the_prediction_interval_test():
     assert one_value(500, 500, 0, 10).p == 1.0 and one_value(499, 500, 0, 10).p == 0.0
     with pytest.raises(ValueError):
         one_value(1, 1, 1, 1)
+
+
+def test_paired_is_the_one_sample_test_of_the_differences():
+    # differences c + (-2, -1, 0, 1, 2): sd sqrt(2.5), se sqrt(0.5); 2.776445105 is t(4)'s 97.5% quantile
+    c = 2.776445105 * math.sqrt(0.5)
+    edge = paired([c - 2, c - 1, c, c + 1, c + 2])
+    assert edge.df == 4 and edge.t == pytest.approx(2.776445105) and edge.p == pytest.approx(0.05, abs=1e-8)
+    assert paired([3.0, 3.0, 3.0]).p == 0.0 and paired([0.0, 0.0]).p == 1.0
+    with pytest.raises(ValueError):
+        paired([1.0])
 
 
 def test_verdict_sentences():

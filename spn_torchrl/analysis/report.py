@@ -31,6 +31,7 @@ from spn_torchrl.analysis.runs import (
     split_duplicates,
     split_finished,
 )
+from spn_torchrl.analysis.stats import p_text, welch
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import SpnError
 
@@ -311,6 +312,28 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
     return out + [""] if out else []
 
 
+def method_pairs(s: dict[str, Any]) -> list[str]:
+    """Welch's two-sided test of each pair of a task's methods (2 seeds or more each) at their last pooled rows."""
+    methods = [(algo, m) for algo, m in s["methods"].items() if len(m["seeds"]) >= 2]
+    rows = []
+    for i, (a, ma) in enumerate(methods):
+        for b, mb in methods[i + 1 :]:
+            test = welch(
+                ma["final_return_mean"],
+                ma["final_return_sd"],
+                len(ma["seeds"]),
+                mb["final_return_mean"],
+                mb["final_return_sd"],
+                len(mb["seeds"]),
+            )
+            diff = f"{ma['final_return_mean']:.2f} - {mb['final_return_mean']:.2f} = {test.diff:+.2f}"
+            rows.append([f"{a} vs {b}", f"{len(ma['seeds'])} / {len(mb['seeds'])}", diff, p_text(test.p)])
+    if not rows:
+        return []
+    header = ["methods", "seeds", "difference of the final means", "Welch's t-test, two-sided"]
+    return ["", "Methods against each other (each at its last pooled generation):", ""] + _table(header, rows)
+
+
 def task_markdown(s: dict[str, Any], figure: str | None) -> list[str]:
     """The report section of one task: curves, final returns, Tables 1-4 of the paper."""
     out = [f"## {s['env_id']} (n={s['n']}, m={s['m']})", ""]
@@ -347,6 +370,7 @@ def task_markdown(s: dict[str, Any], figure: str | None) -> list[str]:
         ],
         rows,
     )
+    out += method_pairs(s)
     out += ["", "### Data efficiency (paper Table: R, G, E, gamma)", ""]
     if level is None:
         out.append("Not computed: no PPO level (run dpn_ppo or pass --ppo-level).")

@@ -9,6 +9,10 @@ Welch's two-sided t-test from summary statistics (one seed: the t-test of a new 
 alpha 0.05. The claims and the pooled rows keep the paper's protocol, seeds 0-9 (its 10 runs); a method with finished
 seeds beyond them gets one more row, "all N seeds", pooling every finished seed, and the claims that compare two
 methods quote those pools beside their verdict, which stays on seeds 0-9.
+
+``--v2 reproduction/runs_v2`` adds the paper's own simulator: runs on MuJoCo 2.1 dynamics (``env.backend=gym_v2``,
+or ``mujoco_batch_mj210``), judged claim by claim as the v5 runs are, in a second pair of columns of the claims table
+and a section per task.
 """
 
 from __future__ import annotations
@@ -28,14 +32,17 @@ from spn_torchrl.analysis.report import (
     left_out_entry,
     level_text,
     method_summary,
+    shown_path,
     stopped_lines,
     summarize,
     task_markdown,
 )
 from spn_torchrl.analysis.runs import RunRecord, group_runs
 from spn_torchrl.analysis.stats import ALPHA, one_value, p_text, sample_sd, verdict, welch
+from spn_torchrl.errors import SpnError
 
-COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --out reproduction/"
+COMMAND = "python -m spn_torchrl.report reproduction/runs --reproduction --v2 reproduction/runs_v2 --out reproduction/"
+V2_BACKENDS = ("gym_v2", "mujoco_batch_mj210")  # MuJoCo 2.1's dynamics: the paper's simulator, or its inertias
 CONFIRMED, NOT_CONFIRMED, NOT_RUN = "confirmed", "not confirmed", "not yet run"
 TAIL = 0.1  # the share of a PPO run's env steps whose evals the seed tables span
 PAPER_SEEDS = range(paper.SEEDS)  # the paper's protocol: 10 runs (Sec. 4.2), our seeds 0-9
@@ -361,12 +368,13 @@ def comparison_markdown(
     figure: str | None,
     seeds: dict[str, list[dict[str, Any]]],
     extra: dict[str, dict[str, Any]] | None = None,
+    simulator: str = "",
 ) -> tuple[list[str], list[dict[str, Any]]]:
     """One task's section: our last generation against the paper's, per method, the learning curves, each PPO
     method's ``seeds`` (from :func:`ppo_seeds`) and, after a method's rows, its pool of all seeds in ``extra``
-    (``{algo: summary}`` of :func:`all_seed_pools`)."""
+    (``{algo: summary}`` of :func:`all_seed_pools`); ``simulator`` follows the task's name in the heading."""
     extra = extra or {}
-    out = [f"## {_title(env)} ({s['env_id']}, n={s['n']}, m={s['m']})", ""]
+    out = [f"## {_title(env)}{simulator} ({s['env_id']}, n={s['n']}, m={s['m']})", ""]
     if figure:
         out += [f"![learning curves]({figure})", ""]
     rows, data = [], []
@@ -497,22 +505,89 @@ def _commits(runs: Sequence[RunRecord]) -> list[str]:
     return sorted(commits)
 
 
-def build_reproduction(
-    paths: Sequence[str | Path], out: Path, level: float | None = None, preface: Path | None = None
-) -> dict[str, Any]:
-    """Write ``out/README.md`` (after ``preface``, default ``out/PREFACE.md``), figures and report.json from the
-    finished runs under ``paths``; return the numbers, the claims and the runs left out."""
-    out = Path(out)
+def simulator(run: RunRecord) -> str:
+    """``v2`` for a run on MuJoCo 2.1's dynamics (:data:`V2_BACKENDS`), else ``v5``."""
+    return "v2" if run.config.env.get("backend") in V2_BACKENDS else "v5"
+
+
+def paper_task(env: str) -> str:
+    """The paper's task a run's ``env.name`` stands for: ``halfcheetah_v2`` -> ``halfcheetah``."""
+    return env.removesuffix("_v2")
+
+
+def _aliased(by_task: dict[str, Any]) -> dict[str, Any]:
+    """A per-task mapping keyed by the paper's names and by their ``_v2`` configs' names too."""
+    return by_task | {f"{env}_v2": value for env, value in by_task.items()}
+
+
+def _renamed(by_task: dict[str, Any], where: str) -> dict[str, Any]:
+    """``by_task`` keyed by :func:`paper_task`; :class:`SpnError` where two run names map onto one task."""
+    out: dict[str, Any] = {}
+    for env, value in by_task.items():
+        if paper_task(env) in out:
+            raise SpnError(
+                f"{where} holds runs of {_title(paper_task(env))} under two names ({paper_task(env)} and "
+                f"{paper_task(env)}_v2: gym_v2 and mujoco_batch_mj210): report each backend from its own directory"
+            )
+        out[paper_task(env)] = value
+    return out
+
+
+def _summarize(paths: Sequence[str | Path], out: Path, level: float | None, expected: str) -> tuple[Any, ...]:
+    """(runs, tasks, figures, all-seed pools) of the runs under ``paths``, each of which must run on ``expected``'s
+    simulator (:func:`simulator`); tasks keyed by the paper's names."""
     runs, tasks, figures = summarize(
         paths,
         out,
         level,
         strict=True,
-        fallback_levels=paper_levels(),
-        published=published_markers(),
+        fallback_levels=_aliased(paper_levels()),
+        published=_aliased(published_markers()),
         seeds=PAPER_SEEDS,
     )
-    extra = all_seed_pools(runs)
+    where = ", ".join(map(str, paths))
+    wrong = [run for run in runs if simulator(run) != expected]
+    if wrong:
+        raise SpnError(
+            f"{shown_path(wrong[0].path)} runs on env.backend={wrong[0].config.env.get('backend')}, but {where} "
+            f"must hold {expected} runs only: "
+            + ("pass v2 runs with --v2" if expected == "v5" else f"backends {V2_BACKENDS}")
+        )
+    return runs, _renamed(tasks, where), _renamed(figures, where), _renamed(all_seed_pools(runs), where)
+
+
+def _claims_table(claim_rows: list[dict[str, str]], v2_rows: list[dict[str, str]] | None) -> list[str]:
+    """The claims table: the paper's figure, ours and a status, then, with ``v2_rows``, ours and a status on v2."""
+    if v2_rows is None:
+        return _table(
+            ["claim", "paper", "ours", "status"],
+            [[c["claim"], c["paper"], c["ours"], f"**{c['status']}**"] for c in claim_rows],
+        )
+    return _table(
+        ["claim", "paper", "ours, v5", "status, v5", "ours, v2", "status, v2"],
+        [
+            [c["claim"], c["paper"], c["ours"], f"**{c['status']}**", v["ours"], f"**{v['status']}**"]
+            for c, v in zip(claim_rows, v2_rows, strict=True)
+        ],
+    )
+
+
+def build_reproduction(
+    paths: Sequence[str | Path],
+    out: Path,
+    level: float | None = None,
+    preface: Path | None = None,
+    v2: Sequence[str | Path] = (),
+) -> dict[str, Any]:
+    """Write ``out/README.md`` (after ``preface``, default ``out/PREFACE.md``), figures and report.json from the
+    finished runs under ``paths`` (Gymnasium v5) and, if given, under ``v2`` (MuJoCo 2.1's dynamics, figures in
+    ``out/v2``); return the numbers, the claims and the runs left out."""
+    out = Path(out)
+    runs, tasks, figures, extra = _summarize(paths, out, level, "v5")
+    v2_runs: list[RunRecord] = []
+    v2_tasks: dict[str, Any] = {}
+    if v2:
+        v2_runs, v2_tasks, v2_figures, v2_extra = _summarize(v2, out / "v2", level, "v2")
     preface = out / "PREFACE.md" if preface is None else Path(preface)
     lines = [preface.read_text().rstrip(), ""] if preface.is_file() else []
     finished = [run for run in runs if run.finished]
@@ -546,13 +621,20 @@ def build_reproduction(
             f"Finished runs of tasks with no run of seeds 0-{paper.SEEDS - 1}, not reported: {'; '.join(sorted(alone))}.",
             "",
         ]
-    lines += stopped_lines(runs)
+    if v2:
+        backends = sorted({str(run.config.env.get("backend")) for run in v2_runs})
+        lines += [
+            "The v2 columns and sections: runs on MuJoCo 2.1's dynamics, the paper's simulator "
+            f"(env.backend={', '.join(backends)}; gym_v2 is Gym 0.21 with mujoco-py on MuJoCo 2.1.0, "
+            "mujoco_batch_mj210 the v5 model with MuJoCo 2.1's compiled body inertias on MuJoCo 4.0; the preface says "
+            "why it stands in for gym_v2), judged by the same rules.",
+            "",
+        ]
+    lines += stopped_lines(runs) + stopped_lines(v2_runs)
     claim_rows = claims(tasks, extra)
+    v2_claims = claims(v2_tasks, v2_extra) if v2 else None
     lines += ["## The paper's claims", ""]
-    lines += _table(
-        ["claim", "paper", "ours", "status"],
-        [[c["claim"], c["paper"], c["ours"], f"**{c['status']}**"] for c in claim_rows],
-    )
+    lines += _claims_table(claim_rows, v2_claims)
     lines += [
         "",
         "Rules: *reaches R*: the mean-over-seeds curve reaches R at some generation. *Beats*: our Connections-GA "
@@ -574,13 +656,22 @@ def build_reproduction(
         figure = Path(figures[env]).name if env in figures else None
         section, comparisons[env] = comparison_markdown(env, summary, figure, seeds.get(env, {}), extra.get(env))
         lines += section
+    v2_comparisons = {}
+    for env, summary in v2_tasks.items():
+        figure = f"v2/{Path(v2_figures[env]).name}" if env in v2_figures else None
+        section, v2_comparisons[env] = comparison_markdown(
+            env, summary, figure, {}, v2_extra.get(env), " on v2 dynamics"
+        )
+        lines += section
     lines += ["## Details per task (the report's own tables: data efficiency, energy)", ""]
-    for summary in tasks.values():
+    for summary in [*tasks.values(), *v2_tasks.values()]:
         lines += ["#" + line if line.startswith("#") else line for line in task_markdown(summary, None)]
     (out / "README.md").write_text("\n".join(lines).rstrip() + "\n")
     payload = {"tasks": tasks, "comparisons": comparisons, "claims": claim_rows, "ppo_seeds": seeds}
     if extra:
         payload["all_seeds"] = extra
+    if v2:
+        payload["v2"] = {"tasks": v2_tasks, "comparisons": v2_comparisons, "claims": v2_claims, "all_seeds": v2_extra}
     (out / "report.json").write_text(json.dumps(payload, indent=2, default=float))
     return {
         "tasks": tasks,
@@ -590,5 +681,8 @@ def build_reproduction(
         "comparisons": comparisons,
         "ppo_seeds": seeds,
         "all_seeds": extra,
-        "stopped": [left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in runs if not run.finished],
+        "v2": payload.get("v2"),
+        "stopped": [
+            left_out_entry(run) | {"env": run.env, "algo": run.algo} for run in [*runs, *v2_runs] if not run.finished
+        ],
     }

@@ -8,6 +8,7 @@ to about 1e-12 for the degrees of freedom a seed count gives.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 ALPHA = 0.05
@@ -86,6 +87,17 @@ def welch(mean1: float, sd1: float, n1: int, mean2: float, sd2: float, n2: int) 
         return _t_test(mean1 - mean2, 0.0, math.inf)
     df = (v1 + v2) ** 2 / ((v1 * v1 / (n1 - 1) if v1 else 0.0) + (v2 * v2 / (n2 - 1) if v2 else 0.0))
     return _t_test(mean1 - mean2, math.sqrt(v1 + v2), df)
+
+
+def paired(differences: Sequence[float]) -> TTest:
+    """The paired two-sided t-test of the per-item differences of two samples (at least 2): their mean over
+    its standard error, n - 1 degrees of freedom."""
+    n = len(differences)
+    if n < 2:
+        raise ValueError(f"a paired t-test needs at least 2 differences, got {n}")
+    mean = math.fsum(differences) / n
+    sd = math.sqrt(math.fsum((d - mean) ** 2 for d in differences) / (n - 1))
+    return _t_test(mean, sd / math.sqrt(n), n - 1)
 
 
 def one_value(value: float, mean: float, sd: float, n: int) -> TTest:
