@@ -33,7 +33,7 @@ from spn_torchrl.errors import ConfigError  # noqa: E402
 log = logging.getLogger("mkdocs.hooks.config_tables")
 MARKER = "<!-- config-tables -->"
 OPTIONS_MARKER = "<!-- config-options -->"
-REPRODUCTION = ("README.md", "*.png")  # reproduction/ files published as the site's reproduction page
+REPRODUCTION = ("README.md", "*.png", "v2/*.png")  # reproduction/ files published as the site's reproduction page
 GROUPS = ("algo", "env", "evaluator", "logger")
 
 
@@ -248,7 +248,7 @@ def on_files(files, config):
         for path in sorted((ROOT / "reproduction").glob(pattern)):
             files.append(
                 File(
-                    f"reproduction/{path.name}",
+                    path.relative_to(ROOT).as_posix(),
                     src_dir=str(ROOT),
                     dest_dir=config["site_dir"],
                     use_directory_urls=config["use_directory_urls"],
