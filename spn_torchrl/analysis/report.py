@@ -31,7 +31,7 @@ from spn_torchrl.analysis.runs import (
     split_duplicates,
     split_finished,
 )
-from spn_torchrl.analysis.stats import p_text, welch
+from spn_torchrl.analysis.stats import TTest, p_text, welch
 from spn_torchrl.envs import task_spec
 from spn_torchrl.errors import SpnError
 
@@ -312,20 +312,25 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
     return out + [""] if out else []
 
 
+def methods_welch(a: dict[str, Any], b: dict[str, Any]) -> TTest:
+    """Welch's two-sided test of two methods' final returns (:func:`method_summary`s of 2 seeds or more each)."""
+    return welch(
+        a["final_return_mean"],
+        a["final_return_sd"],
+        len(a["seeds"]),
+        b["final_return_mean"],
+        b["final_return_sd"],
+        len(b["seeds"]),
+    )
+
+
 def method_pairs(s: dict[str, Any]) -> list[str]:
     """Welch's two-sided test of each pair of a task's methods (2 seeds or more each) at their last pooled rows."""
     methods = [(algo, m) for algo, m in s["methods"].items() if len(m["seeds"]) >= 2]
     rows = []
     for i, (a, ma) in enumerate(methods):
         for b, mb in methods[i + 1 :]:
-            test = welch(
-                ma["final_return_mean"],
-                ma["final_return_sd"],
-                len(ma["seeds"]),
-                mb["final_return_mean"],
-                mb["final_return_sd"],
-                len(mb["seeds"]),
-            )
+            test = methods_welch(ma, mb)
             diff = f"{ma['final_return_mean']:.2f} - {mb['final_return_mean']:.2f} = {test.diff:+.2f}"
             rows.append([f"{a} vs {b}", f"{len(ma['seeds'])} / {len(mb['seeds'])}", diff, p_text(test.p)])
     if not rows:

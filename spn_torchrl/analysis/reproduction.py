@@ -32,6 +32,7 @@ from spn_torchrl.analysis.report import (
     left_out_entry,
     level_text,
     method_summary,
+    methods_welch,
     shown_path,
     stopped_lines,
     summarize,
@@ -203,15 +204,7 @@ def _versus(a: dict[str, Any], b: dict[str, Any]) -> tuple[str, float | None]:
     text = f"{_value(a['final_return_mean'])} vs {_value(b['final_return_mean'])}"
     if len(a["seeds"]) < 2 or len(b["seeds"]) < 2:
         return text, None
-    test = welch(
-        a["final_return_mean"],
-        a["final_return_sd"],
-        len(a["seeds"]),
-        b["final_return_mean"],
-        b["final_return_sd"],
-        len(b["seeds"]),
-    )
-    return text, test.p
+    return text, methods_welch(a, b).p
 
 
 def _paper_versus(env: str) -> tuple[str, float]:

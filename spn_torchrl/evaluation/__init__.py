@@ -33,11 +33,12 @@ def local_processes(evaluator: LocalEvaluatorConfig, threads: int, slots: int, d
     return max(1, min(cores // threads, slots))
 
 
-def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN) -> Evaluator:
-    """The GA's or EC's evaluation slots on this machine, in :func:`local_processes` processes."""
+def local_evaluator(cfg: RunConfig, spec: TaskSpec, spn: PopulationSPN, runs: int = 1) -> Evaluator:
+    """The GA's or EC's evaluation slots of ``runs`` runs in lockstep on this machine, in :func:`local_processes`
+    processes."""
     algo, evaluator = cfg.algo, cfg.evaluator
     assert isinstance(algo, EVOLUTION) and isinstance(evaluator, LocalEvaluatorConfig)
-    slots = algo.evaluation_slots
+    slots = runs * algo.evaluation_slots
     return machine_evaluator(
         spn,
         spec.env_id,

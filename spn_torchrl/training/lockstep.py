@@ -26,7 +26,7 @@ import torch
 
 from spn_torchrl.config import RunConfig
 from spn_torchrl.envs import task_spec
-from spn_torchrl.evaluation import local_processes, machine_evaluator
+from spn_torchrl.evaluation import local_evaluator
 from spn_torchrl.lifecycle import deferred_signals, open_run, run_lock
 from spn_torchrl.records import run_file_error, sweep_name
 from spn_torchrl.snn.policies import spn_from_config
@@ -84,18 +84,7 @@ def _lockstep(cfg: RunConfig, spec: Any, loops: list[Generations]) -> None:
         algo.snn, algo.genome, spec, torch.stack([loop.w1 for loop in loops]), torch.stack([loop.w2 for loop in loops])
     )
     slots = len(loops) * algo.evaluation_slots
-    evaluator = machine_evaluator(
-        spn,
-        spec.env_id,
-        slots,
-        cfg.env.backend,
-        cfg.env.threads,
-        spec.max_episode_steps,
-        local_processes(cfg.evaluator, cfg.env.threads, slots, cfg.env.device),
-        cfg.evaluator.start_timeout_s,
-        cfg.evaluator.call_timeout_s,
-        cfg.env.device,
-    )
+    evaluator = local_evaluator(cfg, spec, spn, len(loops))
     log.info("%d runs in lockstep (seeds %s): %d slots", len(loops), [loop.cfg.seed for loop in loops], slots)
     try:
         while asked := [(loop, request) for loop in loops if (request := loop.next_rollout()) is not None]:
