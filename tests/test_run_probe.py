@@ -477,3 +477,33 @@ def test_auto_mode_with_a_key_and_a_silent_server_logs_offline_after_the_probes_
     log = (run_dir / "train.log").read_text()
     assert f"the W&B server {silent_server} cannot be reached (127.0.0.1:{port}: no answer within 3 s)" in log
     assert list(run_dir.glob("wandb/offline-run-*/*.wandb"))
+
+
+def without_root_override(cmd: list[str]) -> list[str]:
+    """``cmd`` under permission bits: as root, without the capabilities that write through them (setpriv)."""
+    if os.geteuid() != 0:
+        return cmd
+    return ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", *cmd]
+
+
+@pytest.mark.parametrize("below", ["", "sub/run"], ids=["the directory", "a folder above"])
+def test_a_read_only_run_directory_is_one_sentence(tmp_path, below):
+    """A ``hydra.run.dir`` that is (or lies under) a read-only directory: one sentence before Hydra writes (its
+    logging's PermissionError before), and the directory as it was."""
+    read_only = tmp_path / "ro"
+    read_only.mkdir()
+    (read_only / "mine.txt").write_text("the user's\n")
+    read_only.chmod(0o555)
+    run_dir = read_only / below if below else read_only
+    try:
+        proc = subprocess.run(
+            without_root_override(train_command(run_dir, *BASE)), cwd=ROOT, capture_output=True, text=True, timeout=300
+        )
+    finally:
+        read_only.chmod(0o755)
+    held = f" (to hold {run_dir})" if below else ""
+    assert proc.returncode == 1 and proc.stderr.strip() == (
+        f"error: hydra.run.dir={run_dir}: {read_only} is not writable by this user{held}: expected a directory it "
+        "can write"
+    ), proc.stderr
+    assert sorted(p.name for p in read_only.iterdir()) == ["mine.txt"]
