@@ -1,12 +1,28 @@
 """Train an SPN (or the DPN baseline): ``python train.py algo=conn_ga env=cartpole``."""
 
+import os
+import signal
 import sys
 
-import hydra
-from omegaconf import DictConfig
 
-from spn_torchrl import RunInterrupted, SpnError, run
-from spn_torchrl.config import register_configs
+def _stopped_starting(signum: int, frame: object) -> None:
+    """SIGINT or SIGTERM before a run has begun (imports, Hydra, the config's checks): one line, nothing written."""
+    name = signal.Signals(signum).name
+    print(f"stopped: interrupted by {name} while starting, before its run began; start it again", file=sys.stderr)
+    os._exit(128 + signum)
+
+
+# before the imports (seconds of torch, Hydra and TorchRL); the run installs its own handlers once it begins. Only
+# as a script: a Slurm or Ray worker that imports this module keeps its launcher's handlers
+if __name__ == "__main__":
+    signal.signal(signal.SIGINT, _stopped_starting)
+    signal.signal(signal.SIGTERM, _stopped_starting)
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+from spn_torchrl import RunInterrupted, SpnError, run  # noqa: E402
+from spn_torchrl.config import register_configs  # noqa: E402
 
 register_configs()
 

@@ -379,7 +379,9 @@ class LoggerConfig:
     group: Optional[str] = None
     # wandb: "auto" (offline without an API key or a server that answers), "online", "offline", "disabled"; source: project
     mode: str = "auto"
-    progress_bar: bool = False  # a progress bar on the terminal (issue 45); source: project
+    # a tqdm bar while stderr is a terminal (never off one: a pipe, a Slurm log); False: the log lines alone; source:
+    # project (issue 45)
+    progress_bar: bool = True
 
     def validate(self, at: str = "logger") -> None:
         _choice(f"{at}.backend", self.backend, LOGGERS)

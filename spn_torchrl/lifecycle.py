@@ -297,7 +297,7 @@ def open_run(cfg: RunConfig, run_dir: Path, name: str, kind: str, meta: dict[str
         run.logger = make_logger(cfg, run_dir, run.name, run.wandb_id)
         run.wandb_id = logger_run_id(run.logger)
         log.info("run %s in %s", run.name, run_dir)
-        with progress_bar(total, _last_step(run.rows), UNIT[kind]) as run.show:
+        with progress_bar(total, _last_step(run.rows), UNIT[kind], enabled=cfg.logger.progress_bar) as run.show:
             yield run
         exit_code = 0
     except RunInterrupted as err:

@@ -120,14 +120,21 @@ def run_file_error(path: Path, err: OSError) -> RunFileError:
 
 def run_dir_problem(path: Path) -> str | None:
     """Why ``path`` cannot be a run directory, before anything is written there: it, or a folder above it, is a
-    file or a dangling symbolic link. None where it is a directory or can be made one."""
+    file or a dangling symbolic link, or the directory (else its deepest existing folder) is not writable. None
+    where it is a directory this process can write or can be made one."""
     path = Path(path).absolute()
+    deepest = Path(path.anchor)
     for where in (*reversed(path.parents), path):
         if where.is_symlink() and not where.exists():
             return f"{where} is a symbolic link to {os.readlink(where)}, which does not exist: expected a directory"
         if where.exists() and not where.is_dir():
             held = "" if where == path else f" (to hold {path})"
             return f"{where} is a file, expected a directory{held}"
+        if where.exists():
+            deepest = where
+    if not os.access(deepest, os.W_OK | os.X_OK):
+        held = "" if deepest == path else f" (to hold {path})"
+        return f"{deepest} is not writable by this user{held}: expected a directory it can write"
     return None
 
 

@@ -21,12 +21,15 @@ def last_return(row: Mapping[str, Any]) -> float:
 
 
 @contextlib.contextmanager
-def progress_bar(total: int, done: int, unit: str, stream: IO[str] | None = None) -> Iterator[Show]:
+def progress_bar(
+    total: int, done: int, unit: str, stream: IO[str] | None = None, enabled: bool = True
+) -> Iterator[Show]:
     """``show(step, row)`` moves the bar to ``step`` of ``total`` (``done`` already run, e.g. before a resume) with
-    the row's last return; a no-op where ``stream`` (default stderr) is not a terminal. While the bar is up, the
+    the row's last return; a no-op where ``stream`` (default stderr) is not a terminal or the bar is not
+    ``enabled`` (``logger.progress_bar=false``). While the bar is up, the
     console handlers of the root logger write through tqdm, so their lines go above the bar instead of through it."""
     stream = stream or sys.stderr
-    if not stream.isatty():
+    if not enabled or not stream.isatty():
         yield lambda step, row: None
         return
     from tqdm import tqdm

@@ -2,6 +2,7 @@ import os
 import socket
 import stat
 import tempfile
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -11,11 +12,13 @@ from torchrl.record.loggers import CSVLogger
 from spn_torchrl.config import LoggerConfig
 from spn_torchrl.errors import RunFileError
 from spn_torchrl.records import (
+    WANDB_PROBE_S,
     Progress,
     current_umask,
     make_logger,
     read_progress,
     trim_csv_logs,
+    unreachable,
     wandb_mode,
     write_atomic,
 )
@@ -175,3 +178,26 @@ def test_wandb_mode_auto_is_offline_without_credentials(monkeypatch, tmp_path, e
     with socket.create_server(("127.0.0.1", 0)) as server:
         monkeypatch.setenv("WANDB_BASE_URL", f"http://127.0.0.1:{server.getsockname()[1]}")
         assert wandb_mode(requested) == expected
+
+
+def test_the_server_probe_gives_up_on_a_server_that_never_answers_within_its_bound():
+    """A listener whose accept queue is full drops new SYNs, so a connect to it hangs: unreachable() says so after
+    its timeout (the 3 s W&B probe's bound), not after the kernel's minutes of retries."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(0)
+        port = server.getsockname()[1]
+        fillers = [socket.socket() for _ in range(4)]
+        for sock in fillers:
+            sock.setblocking(False)
+            try:
+                sock.connect(("127.0.0.1", port))
+            except BlockingIOError:
+                pass
+        started = time.monotonic()
+        reason = unreachable(f"http://127.0.0.1:{port}", WANDB_PROBE_S)
+        waited = time.monotonic() - started
+        for sock in fillers:
+            sock.close()
+    assert reason == f"127.0.0.1:{port}: no answer within {WANDB_PROBE_S:g} s"
+    assert WANDB_PROBE_S <= waited < WANDB_PROBE_S + 1.0

@@ -4,6 +4,7 @@ subprocess run of train.py with real processes, signals and files)."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import shlex
@@ -15,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+import torch
 import yaml
 from conftest import ROOT, run_train, sigterm_after_first_checkpoint, train_command, wandb_exit_codes
 
@@ -341,3 +343,167 @@ def test_a_run_directory_that_is_a_file_or_a_dangling_link_is_one_sentence(tmp_p
         assert os.readlink(thing) == str(tmp_path / "nowhere")
     else:
         assert thing.read_text() == "the user's\n"
+
+
+def rewrite_checkpoint(run_dir: Path, change) -> bytes:
+    """Apply ``change`` to the state in ``run_dir``'s checkpoint and save it; the damaged file's bytes."""
+    path = run_dir / "checkpoint.pt"
+    state = torch.load(path, weights_only=True)
+    change(state)
+    torch.save(state, path)
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize(
+    "change,problem",
+    [
+        (lambda s: s.pop("w1"), "no 'w1' entry"),
+        (lambda s: s.update(elites=s["elites"].tolist()), "'elites' is a list, not a 2-dimensional tensor"),
+        (lambda s: s.update(population=s["population"][:, :3]), "'population' has shape (20, 3), not 384 genes"),
+        (lambda s: s.update(meta={**s["meta"], "env_id": None}), "'meta.env_id' is a NoneType"),
+    ],
+    ids=["missing", "list", "shape", "meta"],
+)
+def test_a_checkpoint_of_the_wrong_shapes_is_one_sentence_to_resume_play_and_export(tmp_path, change, problem):
+    """A checkpoint that loads but whose entries are missing or of other types or shapes: resume, play and export
+    each end in one sentence naming the file and the entry (they raised KeyError, AttributeError, ValueError), and
+    the file is left as it was."""
+    run_train(tmp_path, *BASE, "algo.generations=1")
+    damaged = rewrite_checkpoint(tmp_path, change)
+    sentence = f"error: {tmp_path / 'checkpoint.pt'} is a damaged spn_torchrl.ga/3 checkpoint ({problem}"
+    procs = [
+        run_train(tmp_path, *BASE, "algo.generations=2", "resume=true", check=False),
+        tool("spn_torchrl.play", str(tmp_path), "--episodes", "1"),
+        tool("spn_torchrl.export", str(tmp_path), str(tmp_path / "elite.nir")),
+    ]
+    for proc in procs:
+        assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+        assert last_line(proc).startswith(sentence), proc.stderr
+    assert (tmp_path / "checkpoint.pt").read_bytes() == damaged and not (tmp_path / "elite.nir").exists()
+
+
+def test_a_ppo_checkpoint_whose_network_does_not_fit_is_one_sentence(tmp_path):
+    """A PPO checkpoint whose actor holds other shapes than the config builds (load_state_dict's RuntimeError)."""
+    run_train(tmp_path, *PPO, "env=cartpole", "algo.total_env_steps=200", *ONE)
+    rewrite_checkpoint(tmp_path, lambda s: s.update(actor={k: v[..., :1] for k, v in s["actor"].items()}))
+    proc = run_train(tmp_path, *PPO, "env=cartpole", "algo.total_env_steps=400", *ONE, "resume=true", check=False)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert last_line(proc) == (
+        f"error: {tmp_path / 'checkpoint.pt'} is a damaged spn_torchrl.ppo/2 checkpoint ('actor' does not fit the "
+        "actor this config builds: RuntimeError): restore it from a copy, or use a new run directory"
+    )
+
+
+def catches(pid: int, signum: int) -> bool:
+    """Whether process ``pid`` has a handler of its own for ``signum`` (/proc's SigCgt mask)."""
+    with contextlib.suppress(OSError):
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("SigCgt:"):
+                return bool(int(line.split()[1], 16) >> (signum - 1) & 1)
+    return False
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_start_up_is_one_line(tmp_path, signum):
+    """Ctrl-C (or SIGTERM) while train.py imports torch and Hydra composes, before the run began: one line and the
+    signal's exit code, no traceback (a KeyboardInterrupt traceback from inside torch's imports before), and the run
+    directory holds no run file."""
+    proc = subprocess.Popen(
+        train_command(tmp_path, *BASE), cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.time() + 60
+    while not catches(proc.pid, signal.SIGTERM) and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.002)  # Python handles SIGTERM once train.py's first lines ran, seconds before its imports end
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=120)
+    name = signal.Signals(signum).name
+    assert proc.returncode == 128 + signum and "Traceback" not in err, err
+    assert err.strip() == f"stopped: interrupted by {name} while starting, before its run began; start it again"
+    assert not (tmp_path / "checkpoint.pt").exists() and not (tmp_path / "progress.csv").exists()
+
+
+def test_an_unknown_mujoco_gl_is_one_sentence_for_a_video_and_harmless_to_a_run(tmp_path):
+    """MUJOCO_GL=bogus: MuJoCo's import raised RuntimeError in every command (TorchRL's envs import it); now a run,
+    which renders nothing, runs, and play --video refuses the value in one sentence before its replay."""
+    env = {**os.environ, "MUJOCO_GL": "bogus", "PYTHONPATH": str(ROOT), "WANDB_MODE": "disabled"}
+    ran = subprocess.run(
+        train_command(tmp_path, *BASE, "algo.generations=1"), cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert ran.returncode == 0, ran.stderr
+    cmd = [sys.executable, "-m", "spn_torchrl.play", str(tmp_path), "--episodes", "1", "--video", "v.mp4"]
+    proc = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and proc.stderr.strip() == (
+        "error: MUJOCO_GL='bogus' is not a MuJoCo rendering backend: set MUJOCO_GL=egl or MUJOCO_GL=osmesa, or "
+        "unset it to try both"
+    )
+    assert not (tmp_path / "v.mp4").exists()
+
+
+@pytest.fixture
+def silent_server():
+    """A localhost URL whose TCP connects hang: a listener whose accept queue is full drops new SYNs."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(0)
+    port = server.getsockname()[1]
+    fillers = []
+    for _ in range(4):
+        sock = socket.socket()
+        sock.setblocking(False)
+        with contextlib.suppress(BlockingIOError):
+            sock.connect(("127.0.0.1", port))
+        fillers.append(sock)
+    yield f"http://127.0.0.1:{port}"
+    for sock in [*fillers, server]:
+        sock.close()
+
+
+def test_auto_mode_with_a_key_and_a_silent_server_logs_offline_after_the_probes_bound(tmp_path, silent_server):
+    """A W&B server that never answers (W&B itself waited about 100 s, then raised CommError): the probe gives up
+    after its 3 s, the run logs offline and says why, and the whole run ends within a guard far below W&B's wait."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WANDB_")}
+    env.update(HOME=str(tmp_path), WANDB_SILENT="true", WANDB_BASE_URL=silent_server, WANDB_API_KEY="k" * 40)
+    run_dir = tmp_path / "run"
+    proc = subprocess.run(
+        train_command(run_dir, *BASE, "algo.generations=1", "logger=wandb", "logger.mode=auto"),
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=90,
+    )
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
+    port = silent_server.rsplit(":", 1)[1]
+    log = (run_dir / "train.log").read_text()
+    assert f"the W&B server {silent_server} cannot be reached (127.0.0.1:{port}: no answer within 3 s)" in log
+    assert list(run_dir.glob("wandb/offline-run-*/*.wandb"))
+
+
+def without_root_override(cmd: list[str]) -> list[str]:
+    """``cmd`` under permission bits: as root, without the capabilities that write through them (setpriv)."""
+    if os.geteuid() != 0:
+        return cmd
+    return ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", *cmd]
+
+
+@pytest.mark.parametrize("below", ["", "sub/run"], ids=["the directory", "a folder above"])
+def test_a_read_only_run_directory_is_one_sentence(tmp_path, below):
+    """A ``hydra.run.dir`` that is (or lies under) a read-only directory: one sentence before Hydra writes (its
+    logging's PermissionError before), and the directory as it was."""
+    read_only = tmp_path / "ro"
+    read_only.mkdir()
+    (read_only / "mine.txt").write_text("the user's\n")
+    read_only.chmod(0o555)
+    run_dir = read_only / below if below else read_only
+    try:
+        proc = subprocess.run(
+            without_root_override(train_command(run_dir, *BASE)), cwd=ROOT, capture_output=True, text=True, timeout=300
+        )
+    finally:
+        read_only.chmod(0o755)
+    held = f" (to hold {run_dir})" if below else ""
+    assert proc.returncode == 1 and proc.stderr.strip() == (
+        f"error: hydra.run.dir={run_dir}: {read_only} is not writable by this user{held}: expected a directory it "
+        "can write"
+    ), proc.stderr
+    assert sorted(p.name for p in read_only.iterdir()) == ["mine.txt"]

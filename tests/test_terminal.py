@@ -33,11 +33,11 @@ def test_the_bar_counts_rows_with_their_return_on_a_terminal():
     assert "3/5" in text and "gen" in text and "return 7.25" in text and "1/5" in text  # resumed after 1
 
 
-def test_off_a_terminal_the_bar_writes_nothing():
-    pipe = io.StringIO()
-    with progress_bar(5, 0, "gen", pipe) as show:
-        show(1, {"eval_return": 1.0})
-    assert pipe.getvalue() == ""
+def test_off_a_terminal_or_switched_off_the_bar_writes_nothing():
+    for stream, enabled in ((io.StringIO(), True), (Terminal(), False)):
+        with progress_bar(5, 0, "gen", stream, enabled=enabled) as show:
+            show(1, {"eval_return": 1.0})
+        assert stream.getvalue() == ""
 
 
 def test_last_return_is_the_evaluation_else_the_training_return():
@@ -75,6 +75,9 @@ def test_a_run_on_a_terminal_shows_the_bar_and_through_a_pipe_one_line_per_gener
     print(screen)
     assert re.search(r"2/2 \[[0-9:]+<[0-9:]+, +[0-9.]+(s/gen|gen/s), return [0-9.]+\]", screen), screen[-2000:]
     assert all(screen.count(f"gen {g}/2 ") == 1 for g in (1, 2))  # the log lines, each once, above the bar
+
+    plain = on_a_terminal(train_command(tmp_path / "off", *TINY_RUN, "logger.progress_bar=false"))
+    assert "2/2 [" not in plain and [int(g) for g in re.findall(r"gen (\d+)/2 ", plain)] == [1, 2]
 
     piped = subprocess.run(
         train_command(tmp_path / "pipe", *TINY_RUN), cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=600

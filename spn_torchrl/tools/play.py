@@ -100,6 +100,12 @@ def run_episode(elite: Elite, seed: int, render: bool = False, max_steps: int | 
 
 def find_gl_backend(env_id: str) -> str:
     """A ``MUJOCO_GL`` value that renders ``env_id`` offscreen here (tried in a subprocess), or a clear error."""
+    unknown = os.environ.get("SPN_TORCHRL_UNKNOWN_MUJOCO_GL")  # set aside by the package (MuJoCo refuses it)
+    if unknown is not None:
+        raise SpnError(
+            f"MUJOCO_GL={unknown!r} is not a MuJoCo rendering backend: set MUJOCO_GL=egl or MUJOCO_GL=osmesa, or "
+            "unset it to try both"
+        )
     candidates = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(GL_BACKENDS)
     probe = f"import gymnasium as g; e = g.make({env_id!r}, render_mode='rgb_array'); e.reset(seed=0); e.render()"
     reasons = []

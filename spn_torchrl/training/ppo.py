@@ -211,9 +211,7 @@ def _iterations(cfg: RunConfig, spec: TaskSpec, run: Run, start: int, iterations
     stats = observations.initial_stats(spec.n_obs) if cfg.normalize_observations else None
     if run.state is not None:
         state = run.state
-        actor.load_state_dict(state["actor"])
-        critic.load_state_dict(state["critic"])
-        optim.load_state_dict(state["optim"])
+        load_states(run.dir, state, actor=actor, critic=critic, optim=optim)
         counts.values.update(state["counts"])
         wall = state["wall_time_s"]
         torch.set_rng_state(state["torch_rng"])
@@ -360,5 +358,18 @@ def load_actor(run_dir: Path, cfg: RunConfig) -> tuple[ProbabilisticActor, TaskS
         actor = make_actor(cfg, spec, env)
     finally:
         env.close()
-    actor.load_state_dict(state["actor"])
+    load_states(run_dir, state, actor=actor)
     return actor, spec
+
+
+def load_states(run_dir: Path, state: dict[str, Any], **targets: Any) -> None:
+    """Load each module's or optimiser's entry of a PPO checkpoint's ``state``; one of other names or shapes
+    is a damaged checkpoint (CheckpointError)."""
+    for key, target in targets.items():
+        try:
+            target.load_state_dict(state[key])
+        except (RuntimeError, ValueError, KeyError, TypeError, IndexError) as err:
+            problem = f"'{key}' does not fit the {key} this config builds: {type(err).__name__}"
+            raise checkpoint.damaged(
+                Path(run_dir) / checkpoint.CHECKPOINT_NAME, checkpoint.PPO_FORMAT, problem
+            ) from None
