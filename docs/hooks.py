@@ -1,5 +1,5 @@
 """MkDocs hooks: the configuration page's tables, generated at build time from ``spn_torchrl/config.py``, and the
-committed reproduction report (``reproduction/README.md`` and its figures) as a page of the site.
+committed reports (``reproduction/README.md``, ``beyond/report.md`` and their figures) as pages of the site.
 
 Each field's documentation is the comment on its line or the comment lines just above it, ending in
 ``source: WHERE``; its default comes from the dataclass, its allowed range from the field's own ``validate``
@@ -33,7 +33,8 @@ from spn_torchrl.errors import ConfigError  # noqa: E402
 log = logging.getLogger("mkdocs.hooks.config_tables")
 MARKER = "<!-- config-tables -->"
 OPTIONS_MARKER = "<!-- config-options -->"
-REPRODUCTION = ("README.md", "*.png", "v2/*.png")  # reproduction/ files published as the site's reproduction page
+# committed report files published as pages of the site: the reproduction and the study beyond the paper
+PUBLISHED = {"reproduction": ("README.md", "*.png", "v2/*.png"), "beyond": ("report.md", "*.png")}
 GROUPS = ("algo", "env", "evaluator", "logger")
 
 
@@ -241,11 +242,12 @@ def _flat(node: dict, at: str = "") -> list[tuple[str, Any]]:
 
 
 def on_files(files, config):
-    """Publish reproduction/README.md (the report command's output, PREFACE.md at its top) and its figures."""
+    """Publish reproduction/README.md and beyond/report.md (the report command's output, PREFACE.md at its top) and
+    their figures."""
     from mkdocs.structure.files import File
 
-    for pattern in REPRODUCTION:
-        for path in sorted((ROOT / "reproduction").glob(pattern)):
+    for folder, patterns in PUBLISHED.items():
+        for path in sorted(path for pattern in patterns for path in (ROOT / folder).glob(pattern)):
             files.append(
                 File(
                     path.relative_to(ROOT).as_posix(),

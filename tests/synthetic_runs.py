@@ -39,7 +39,8 @@ def write_run(
     run.mkdir(parents=True)
     generations = len(returns) if generations is None else generations
     snn = "  hidden: 64\n  time_steps: 4\n" if snn_schema == "old" else "  snn:\n    hidden: 64\n    time_steps: 4\n"
-    budget = f"  generations: {generations}\n" if kind == "ga" else f"  total_env_steps: {total_env_steps}\n"
+    generational = kind in ("ga", "ec")  # one row a generation
+    budget = f"  generations: {generations}\n" if generational else f"  total_env_steps: {total_env_steps}\n"
     config = (
         f"algo:\n  name: {algo}\n  kind: {kind}\n{budget}  population: 200\n  elite_candidates: 10\n"
         f"  elite_episodes: 10\n{snn}env:\n  name: {env}\n  id: {env_id}\n"
@@ -50,7 +51,7 @@ def write_run(
     (run / (".hydra/config.yaml" if layout == "hydra" else "config.yaml")).write_text(config)
     with open(run / "progress.csv", "w", newline="") as f:
         writer = csv.writer(f)
-        if kind == "ga":
+        if generational:
             writer.writerow(GA_FIELDS)
             for g, value in enumerate(returns, start=1):
                 writer.writerow([g, value, g * steps_per_row, 0.5, 0.1, 500, 200])

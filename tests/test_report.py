@@ -163,3 +163,23 @@ def test_methods_of_a_task_are_tested_against_each_other(tmp_path):
     p = welch(110.0, 10.0, 3, 160.0, 10.0, 3).p
     assert f"| conn_ga vs weights_ga | 3 / 3 | 110.00 - 160.00 = -50.00 | {p_text(p)} |" in md
     assert "conn_ec vs" not in md and "vs conn_ec" not in md
+
+
+def test_ec_runs_get_the_ga_tables_and_a_preface_heads_the_report(tmp_path):
+    """conn_ec is an evolved SPN like the GA: its data efficiency, inference and optimisation energy rows are
+    computed the same way; a PREFACE.md in --out is the report's top, verbatim."""
+    for seed in range(2):
+        write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "conn_ga", seed, [10.0, 50.0, 100.0 + seed])
+        write_run(tmp_path / "runs", "cartpole", "CartPole-v1", "conn_ec", seed, [10.0, 90.0, 120.0 + seed], kind="ec")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "PREFACE.md").write_text("# Beyond the paper\n\nHand-written.\n")
+    result = build_report([tmp_path / "runs"], out, level=80.0)
+    md = Path(result["markdown"]).read_text()
+    assert md.startswith("# Beyond the paper\n\nHand-written.\n\n# SPN report")
+    s = result["tasks"]["cartpole"]
+    assert set(s["inference"]) == set(s["optim"]) == set(s["data_efficiency"]) == {"conn_ga", "conn_ec"}
+    assert s["data_efficiency"]["conn_ec"]["G"] == 2 and s["data_efficiency"]["conn_ga"]["G"] == 3
+    assert s["optim"]["conn_ec"]["env_steps"] == 2000.0  # env steps up to G, as the GA's
+    assert "| conn_ec | 0.1000 |" in md  # its inference energy row
+    assert "| conn_ec vs conn_ga | 2 / 2 |" in md

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
-from spn_torchrl.analysis.runs import RunRecord, longer_groups, mean_std, pooled  # noqa: E402
+from spn_torchrl.analysis.runs import GENERATIONAL, RunRecord, longer_groups, mean_std, pooled  # noqa: E402
 
 COLORS = {"conn_ga": "tab:purple", "weights_ga": "tab:blue", "dpn_ppo": "tab:red", "conn_ppo": "tab:green"}
 
@@ -50,9 +50,9 @@ def task_figure(
     published: dict[str, tuple[int, float, float]] | None = None,
     level_note: str = "",
 ) -> Path:
-    """Return vs generation (GA runs) and vs env steps (every method, one shared log axis) for one task.
+    """Return vs generation (GA and EC runs) and vs env steps (every method, one shared log axis) for one task.
 
-    ``reached`` maps a GA method to G, the generation its mean curve reaches the PPO level (a dotted line);
+    ``reached`` maps a GA or EC method to G, the generation its mean curve reaches the PPO level (a dotted line);
     ``published`` maps a GA method to a published (generation, mean, std): a marker with a half-std bar.
     ``level_note`` follows the PPO level in the legend (e.g. "paper's R").
     """
@@ -60,7 +60,7 @@ def task_figure(
     for algo, runs in sorted(algos.items()):
         color = COLORS.get(algo)
         steps = pooled(runs, "total_env_steps").mean(axis=0)
-        if runs[0].kind == "ga":
+        if runs[0].kind in GENERATIONAL:
             _band(by_gen, pooled(runs, "generation")[0], runs, algo, color)
             _longer(by_gen, "generation", runs, algo, color)
             _longer(by_steps, "total_env_steps", runs, algo, color)
@@ -71,7 +71,7 @@ def task_figure(
                 )
                 by_steps.axvline(steps[generation - 1], color=color, linestyle=":", linewidth=1)
         _band(by_steps, steps, runs, algo, color)
-        if runs[0].kind == "ga" and algo in (published or {}):
+        if runs[0].kind in GENERATIONAL and algo in (published or {}):
             generation, mean, std = published[algo]
             by_gen.errorbar(
                 generation,
@@ -98,10 +98,11 @@ def task_figure(
     by_steps.set_xlabel("env steps (log scale)")
     by_steps.set_xscale("log")
     by_steps.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on a short range
-    by_gen.set_title(f"{title}: return vs generation (GA)")
+    kinds = sorted({runs[0].kind.upper() for runs in algos.values() if runs[0].kind in GENERATIONAL})
+    by_gen.set_title(f"{title}: return vs generation" + (f" ({', '.join(kinds)})" if kinds else ""))
     by_steps.set_title(f"{title}: return vs env steps")
     caption = "line: mean over seeds; band: +- half a std over seeds"
-    if any(longer_groups(runs) for runs in algos.values() if runs[0].kind == "ga"):
+    if any(longer_groups(runs) for runs in algos.values() if runs[0].kind in GENERATIONAL):
         caption += "; dashed: the runs that went on past the rest"
     fig.text(0.5, 0.005, caption, ha="center", fontsize=8)
     fig.tight_layout(rect=(0, 0.03, 1, 1))

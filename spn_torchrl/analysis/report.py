@@ -1,7 +1,8 @@
 """One report over run / multirun directories: curves over seeds, data efficiency, energy (paper Tables 1-4).
 
 ``python -m spn_torchrl.report PATH... [--ppo-level R] [--out DIR] [--wandb]`` writes ``report.md``,
-``report.json`` (the same numbers, for tools) and one PNG per task into ``--out``.
+``report.json`` (the same numbers, for tools) and one PNG per task into ``--out``; a ``PREFACE.md`` already in
+``--out`` goes verbatim at the top of ``report.md``.
 
 Runs that did not reach their budget are listed apart, never pooled with finished ones; a method none of whose
 runs finished is pooled over the generations every run reached, and says so.
@@ -20,6 +21,7 @@ from spn_torchrl.analysis import energy
 from spn_torchrl.analysis.energy import sig
 from spn_torchrl.analysis.figures import task_figure
 from spn_torchrl.analysis.runs import (
+    GENERATIONAL,
     RunRecord,
     common_length,
     find_runs,
@@ -242,7 +244,7 @@ def task_summary(
         "optim": {},
     }
     for algo, runs in sorted(algos.items()):
-        if runs[0].kind != "ga":
+        if runs[0].kind not in GENERATIONAL:
             continue
         eff = data_efficiency(runs, level, ppo["env_steps"]) if level is not None else None
         if eff is not None:
@@ -286,7 +288,7 @@ def pooling_notes(s: dict[str, Any]) -> list[str]:
         if m["unfinished_pooled"]:
             out.append(
                 f"- **{algo}: no run reached its budget**; its curve and numbers pool every run over the "
-                f"{m['rows']} {'generations' if m['kind'] == 'ga' else 'iterations'} all of them reached: {_progress_list(m['unfinished_pooled'])}."
+                f"{m['rows']} {'generations' if m['kind'] in GENERATIONAL else 'iterations'} all of them reached: {_progress_list(m['unfinished_pooled'])}."
             )
         elif m["longer"]:
             went_on = "; ".join(f"seeds {g['seeds']} to {g['rows']}" for g in m["longer"])
@@ -526,10 +528,18 @@ def stopped_lines(runs: Sequence[RunRecord]) -> list[str]:
     return lines + [""]
 
 
+def preface_lines(out: Path, preface: Path | None = None) -> list[str]:
+    """The hand-written text a report starts with: ``preface`` (default ``out/PREFACE.md``) if it is a file."""
+    preface = out / "PREFACE.md" if preface is None else Path(preface)
+    return [preface.read_text().rstrip(), ""] if preface.is_file() else []
+
+
 def build_report(paths: Sequence[str | Path], out: Path, level: float | None = None) -> dict[str, Any]:
-    """Find the runs under ``paths``, write report.md, report.json and figures into ``out``; return the numbers."""
+    """Find the runs under ``paths``, write report.md (after ``out/PREFACE.md``, if there is one), report.json and
+    figures into ``out``; return the numbers."""
     runs, summaries, figures = summarize(paths, out, level)
-    lines = ["# SPN report", "", f"Runs found under {', '.join(map(str, paths))}: {len(runs)}.", ""]
+    lines = preface_lines(out)
+    lines += ["# SPN report", "", f"Runs found under {', '.join(map(str, paths))}: {len(runs)}.", ""]
     lines += stopped_lines(runs)
     if not any(run.kind == "ppo" for run in runs):
         lines += [

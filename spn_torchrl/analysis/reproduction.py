@@ -33,6 +33,7 @@ from spn_torchrl.analysis.report import (
     level_text,
     method_summary,
     methods_welch,
+    preface_lines,
     shown_path,
     stopped_lines,
     summarize,
@@ -581,8 +582,7 @@ def build_reproduction(
     v2_tasks: dict[str, Any] = {}
     if v2:
         v2_runs, v2_tasks, v2_figures, v2_extra = _summarize(v2, out / "v2", level, "v2")
-    preface = out / "PREFACE.md" if preface is None else Path(preface)
-    lines = [preface.read_text().rstrip(), ""] if preface.is_file() else []
+    lines = preface_lines(out, preface)
     finished = [run for run in runs if run.finished]
     commits = _commits(runs)
     lines += [

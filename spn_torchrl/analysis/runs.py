@@ -17,6 +17,7 @@ from spn_torchrl.records import read_progress
 
 # where a run's resolved config lies: a Hydra run directory, or a collected copy (reproduction/runs/)
 CONFIG_PATHS = (Path(".hydra") / "config.yaml", Path("config.yaml"))
+GENERATIONAL = frozenset({"ga", "ec"})  # the kinds that log one row a generation and evolve the SPN's masks or weights
 
 
 @dataclass
@@ -56,7 +57,7 @@ class RunRecord:
     @property
     def done(self) -> int:
         """How far it got: generations logged (GA) or its last total_env_steps (PPO)."""
-        if self.kind != "ppo":  # a GA or EC run: one row a generation
+        if self.kind in GENERATIONAL:
             return len(self.rows)
         return int(self.rows[-1].get("total_env_steps") or 0)
 
