@@ -6,6 +6,8 @@ import csv
 from collections.abc import Sequence
 from pathlib import Path
 
+from spn_torchrl.analysis.runs import GENERATIONAL
+
 GA_FIELDS = [
     "generation",
     "eval_return",
@@ -39,7 +41,7 @@ def write_run(
     run.mkdir(parents=True)
     generations = len(returns) if generations is None else generations
     snn = "  hidden: 64\n  time_steps: 4\n" if snn_schema == "old" else "  snn:\n    hidden: 64\n    time_steps: 4\n"
-    generational = kind in ("ga", "ec")  # one row a generation
+    generational = kind in GENERATIONAL
     budget = f"  generations: {generations}\n" if generational else f"  total_env_steps: {total_env_steps}\n"
     config = (
         f"algo:\n  name: {algo}\n  kind: {kind}\n{budget}  population: 200\n  elite_candidates: 10\n"
